@@ -1,1 +1,3 @@
-//! placeholder
+//! # regolith-corpus
+//!
+//! Generates synthetic survey campaigns with full ground truth (being written).

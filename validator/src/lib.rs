@@ -1,1 +1,9 @@
-//! placeholder
+//! # regolith-validator
+//!
+//! Re-renders terrain entries at real capture poses and compares the renders with the real
+//! images. [`render`] is a deterministic CPU renderer; [`sensor`] is the camera/sensor effect
+//! model shared with the corpus generator (which applies hidden effects to "real" images) and
+//! with the gap workflow (which fits them).
+
+pub mod render;
+pub mod sensor;

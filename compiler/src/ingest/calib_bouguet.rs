@@ -1,0 +1,1 @@
+//! calib_bouguet: reader being written.

@@ -1,0 +1,1 @@
+//! calib_kalibr: reader being written.

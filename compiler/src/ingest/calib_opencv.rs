@@ -1,0 +1,1 @@
+//! calib_opencv: reader being written.

@@ -1,0 +1,1 @@
+//! calib_ros: reader being written.

@@ -1,0 +1,1 @@
+//! cmpmvs: reader being written.

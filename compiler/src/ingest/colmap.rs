@@ -1,0 +1,1 @@
+//! colmap: reader being written.

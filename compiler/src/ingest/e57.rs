@@ -1,0 +1,1 @@
+//! e57: reader being written.

@@ -1,0 +1,1 @@
+//! las: reader being written.

@@ -1,0 +1,1 @@
+//! ply: reader being written.

@@ -1,0 +1,1 @@
+//! riscan_ascii: reader being written.

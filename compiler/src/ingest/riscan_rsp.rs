@@ -1,0 +1,1 @@
+//! riscan_rsp: reader being written.

@@ -1,0 +1,1 @@
+//! tiepoints: reader being written.

@@ -1,0 +1,1 @@
+//! undistort: reader being written.

@@ -1,0 +1,1 @@
+//! vicon_csv: reader being written.

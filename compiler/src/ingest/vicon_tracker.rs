@@ -1,0 +1,1 @@
+//! vicon_tracker: reader being written.

@@ -1,0 +1,1 @@
+//! vrml: reader being written.

@@ -1,0 +1,1 @@
+//! Deterministic CPU renderer (being written).

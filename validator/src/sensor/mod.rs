@@ -1,0 +1,1 @@
+//! Sensor effect model (being written).
