@@ -1,0 +1,232 @@
+//! Opening a database, listing and resolving releases, and reading entries.
+//!
+//! Layout (SPEC.md §2): `regolith.db` marker, `objects/sha256/<2>/<62>` immutable objects
+//! (payloads and release manifests), `refs/<name>` mutable names holding a release id,
+//! `logs/refs.jsonl` the append-only ref log (the only place wall-clock time is kept).
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use regolith_format::camera_model::CameraModel;
+use regolith_format::kinds::{self, RigMeta};
+use regolith_format::manifest::{check_name, MANIFEST_MEDIA_TYPE};
+use regolith_format::{Entry, ObjectId, Release};
+
+use crate::error::{ReaderError, Result};
+use crate::object::{read_ref, read_verified, Site};
+
+/// File name of the marker that makes a folder a database.
+pub const MARKER: &str = "regolith.db";
+/// The ref naming the newest release.
+pub const LATEST: &str = "latest";
+/// Prefix of the immutable per-release refs (`releases/<name>@<version>`).
+pub const RELEASES_PREFIX: &str = "releases/";
+
+/// An open database (read-only handle; see [`crate::write::Writer`] for writing).
+#[derive(Debug, Clone)]
+pub struct Database {
+    root: PathBuf,
+}
+
+/// A loaded release: its id and verified manifest.
+#[derive(Debug, Clone)]
+pub struct ReleaseView {
+    root: PathBuf,
+    /// The release id (hash of the manifest bytes).
+    pub id: ObjectId,
+    /// The manifest.
+    pub manifest: Release,
+}
+
+impl Database {
+    /// Opens the database at `path`, checking its marker.
+    ///
+    /// ```no_run
+    /// let db = regolith_reader::Database::open("terrain.db")?;
+    /// for (label, id) in db.releases()? {
+    ///     println!("{label} {}", id.short());
+    /// }
+    /// # Ok::<(), regolith_reader::ReaderError>(())
+    /// ```
+    pub fn open(path: impl AsRef<Path>) -> Result<Database> {
+        let root = path.as_ref().to_path_buf();
+        let marker = root.join(MARKER);
+        let bytes = fs::read(&marker).map_err(|_| ReaderError::NotADatabase { path: root.clone() })?;
+        let v: serde_json::Value = serde_json::from_slice(&bytes)
+            .map_err(|_| ReaderError::NotADatabase { path: root.clone() })?;
+        let schema = v.get("schema").and_then(|s| s.as_str()).unwrap_or_default();
+        regolith_format::manifest::check_schema(schema).map_err(ReaderError::format(marker.display().to_string()))?;
+        Ok(Database { root })
+    }
+
+    /// The database folder.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// Every ref and the release id it holds, sorted by name.
+    pub fn refs(&self) -> Result<BTreeMap<String, ObjectId>> {
+        let mut out = BTreeMap::new();
+        let dir = self.root.join("refs");
+        if dir.is_dir() {
+            walk_refs(&dir, "", &mut out)?;
+        }
+        Ok(out)
+    }
+
+    /// Reads one ref, `None` if it does not exist.
+    pub fn read_ref(&self, name: &str) -> Result<Option<ObjectId>> {
+        check_name("ref name", name).map_err(ReaderError::format("ref"))?;
+        let path = self.root.join("refs").join(name);
+        match fs::read_to_string(&path) {
+            Ok(s) => Ok(Some(parse_ref(&s, &path)?)),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            Err(e) => Err(ReaderError::Io { op: "reading", path, source: e }),
+        }
+    }
+
+    /// Named releases (`name@version`, id), sorted by label.
+    pub fn releases(&self) -> Result<Vec<(String, ObjectId)>> {
+        Ok(self
+            .refs()?
+            .into_iter()
+            .filter_map(|(k, v)| k.strip_prefix(RELEASES_PREFIX).map(|l| (l.to_string(), v)))
+            .collect())
+    }
+
+    /// Resolves `name@version`, a ref name (`latest`), a full id or an id prefix of ≥ 6 digits.
+    pub fn resolve(&self, spec: &str) -> Result<ObjectId> {
+        if let Ok(id) = spec.parse::<ObjectId>() {
+            return Ok(id);
+        }
+        if check_name("ref", spec).is_ok() {
+            if let Some(id) = self.read_ref(&format!("{RELEASES_PREFIX}{spec}"))? {
+                return Ok(id);
+            }
+            if let Some(id) = self.read_ref(spec)? {
+                return Ok(id);
+            }
+        }
+        if spec.len() >= 6 && spec.bytes().all(|b| b.is_ascii_hexdigit()) {
+            let mut hits: Vec<ObjectId> =
+                self.refs()?.into_values().filter(|id| id.to_hex().starts_with(spec)).collect();
+            hits.sort();
+            hits.dedup();
+            return match hits.as_slice() {
+                [one] => Ok(*one),
+                [] => Err(ReaderError::UnknownRelease { spec: spec.to_string() }),
+                _ => Err(ReaderError::AmbiguousRelease { spec: spec.to_string() }),
+            };
+        }
+        Err(ReaderError::UnknownRelease { spec: spec.to_string() })
+    }
+
+    /// Loads a release by any spec accepted by [`Database::resolve`].
+    pub fn release(&self, spec: &str) -> Result<ReleaseView> {
+        let id = self.resolve(spec)?;
+        self.release_by_id(&id)
+    }
+
+    /// Loads and verifies a release manifest by id.
+    pub fn release_by_id(&self, id: &ObjectId) -> Result<ReleaseView> {
+        let site = Site::new("<manifest>", MANIFEST_MEDIA_TYPE);
+        let bytes = read_verified(&self.root, id, None, &site)?;
+        let manifest = Release::from_bytes(&bytes)
+            .map_err(ReaderError::format(format!("release manifest {}", id.short())))?;
+        Ok(ReleaseView { root: self.root.clone(), id: *id, manifest })
+    }
+}
+
+fn walk_refs(dir: &Path, prefix: &str, out: &mut BTreeMap<String, ObjectId>) -> Result<()> {
+    let rd = fs::read_dir(dir).map_err(ReaderError::io("listing", dir))?;
+    let mut names: Vec<_> = rd.filter_map(|e| e.ok()).map(|e| e.path()).collect();
+    names.sort();
+    for path in names {
+        let Some(name) = path.file_name().and_then(|n| n.to_str()).map(str::to_string) else {
+            continue;
+        };
+        if name.starts_with('.') {
+            continue; // temp files of an interrupted ref update
+        }
+        let full = format!("{prefix}{name}");
+        if path.is_dir() {
+            walk_refs(&path, &format!("{full}/"), out)?;
+        } else {
+            let s = fs::read_to_string(&path).map_err(ReaderError::io("reading", &path))?;
+            out.insert(full, parse_ref(&s, &path)?);
+        }
+    }
+    Ok(())
+}
+
+fn parse_ref(s: &str, path: &Path) -> Result<ObjectId> {
+    s.trim().parse().map_err(ReaderError::format(format!("ref file {}", path.display())))
+}
+
+impl ReleaseView {
+    /// `name@version`.
+    pub fn label(&self) -> String {
+        self.manifest.label()
+    }
+
+    /// The entries, sorted by name.
+    pub fn entries(&self) -> &[Entry] {
+        &self.manifest.entries
+    }
+
+    /// An entry by name.
+    pub fn entry(&self, name: &str) -> Result<&Entry> {
+        self.manifest.entry(name).ok_or_else(|| ReaderError::NoSuchEntry {
+            release: self.label(),
+            entry: name.to_string(),
+        })
+    }
+
+    /// An entry that must be of `kind`.
+    pub fn entry_of_kind(&self, name: &str, kind: &'static str) -> Result<&Entry> {
+        let e = self.entry(name)?;
+        if e.kind != kind {
+            return Err(ReaderError::WrongKind { entry: name.to_string(), expected: kind, found: e.kind.clone() });
+        }
+        Ok(e)
+    }
+
+    /// The verified bytes of an entry's file with the given role (whole-entry or root tile).
+    pub fn read_file(&self, entry: &str, role: &str) -> Result<Vec<u8>> {
+        let e = self.entry(entry)?;
+        let f = e.file(role).ok_or_else(|| ReaderError::NoSuchRole {
+            entry: entry.to_string(),
+            role: role.to_string(),
+        })?;
+        read_ref(&self.root, f, &Site::new(entry, role))
+    }
+
+    /// Decodes a JSON file of an entry.
+    pub fn read_json<T: serde::de::DeserializeOwned>(&self, entry: &str, role: &str, what: &'static str) -> Result<T> {
+        let bytes = self.read_file(entry, role)?;
+        serde_json::from_slice(&bytes).map_err(|e| ReaderError::Decode {
+            entry: entry.to_string(),
+            what,
+            message: e.to_string(),
+        })
+    }
+
+    /// A camera's intrinsics.
+    pub fn camera(&self, entry: &str) -> Result<CameraModel> {
+        self.entry_of_kind(entry, kinds::CAMERA)?;
+        self.read_json(entry, kinds::roles::CALIBRATION, "camera calibration")
+    }
+
+    /// A stereo rig's extrinsics.
+    pub fn rig(&self, entry: &str) -> Result<RigMeta> {
+        self.entry_of_kind(entry, kinds::RIG)?;
+        self.read_json(entry, kinds::roles::CALIBRATION, "rig calibration")
+    }
+
+    /// A report's JSON body.
+    pub fn report(&self, entry: &str) -> Result<serde_json::Value> {
+        self.entry_of_kind(entry, kinds::REPORT)?;
+        self.read_json(entry, kinds::roles::REPORT, "report")
+    }
+}

@@ -1,0 +1,137 @@
+//! Errors of the reader (and writer): every variant names the object, entry or path concerned.
+
+use std::path::PathBuf;
+
+use regolith_format::{FormatError, ObjectId};
+use thiserror::Error;
+
+/// Errors reading or writing a database.
+#[derive(Debug, Error)]
+pub enum ReaderError {
+    /// A file-system operation failed.
+    #[error("{source} ({op} {})", path.display())]
+    Io {
+        /// What was being done (`reading`, `writing`, `renaming`...).
+        op: &'static str,
+        /// The path concerned.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The folder is not a regolith database.
+    #[error("not a regolith database: no readable `regolith.db` marker ({})", path.display())]
+    NotADatabase {
+        /// The folder.
+        path: PathBuf,
+    },
+    /// No release matches the given name, version, id or ref.
+    #[error("no release matches {spec:?} (try `regolith inspect DB` to list releases)")]
+    UnknownRelease {
+        /// What the user asked for.
+        spec: String,
+    },
+    /// A release id prefix matches several releases.
+    #[error("release id prefix {spec:?} is ambiguous")]
+    AmbiguousRelease {
+        /// The prefix.
+        spec: String,
+    },
+    /// The release has no entry of that name.
+    #[error("release {release} has no entry {entry:?}")]
+    NoSuchEntry {
+        /// Release label.
+        release: String,
+        /// Entry name.
+        entry: String,
+    },
+    /// The entry has no file with that role.
+    #[error("entry {entry:?} has no file with role {role:?}")]
+    NoSuchRole {
+        /// Entry name.
+        entry: String,
+        /// Role.
+        role: String,
+    },
+    /// The entry is of another kind than the call needs.
+    #[error("entry {entry:?} is a {found}, expected a {expected}")]
+    WrongKind {
+        /// Entry name.
+        entry: String,
+        /// The kind needed.
+        expected: &'static str,
+        /// The kind found.
+        found: String,
+    },
+    /// A referenced object is not in the store.
+    #[error("object {object} is missing (entry {entry:?}, role {role:?})")]
+    MissingObject {
+        /// The object id.
+        object: ObjectId,
+        /// Entry name (or `<manifest>`).
+        entry: String,
+        /// Role.
+        role: String,
+    },
+    /// An object's bytes do not hash to its name, or its size is wrong.
+    #[error("object {object} is corrupt: {detail} (entry {entry:?}, role {role:?})")]
+    CorruptObject {
+        /// The object id.
+        object: ObjectId,
+        /// Entry name (or `<manifest>`).
+        entry: String,
+        /// Role.
+        role: String,
+        /// Expected vs found.
+        detail: String,
+    },
+    /// An object's content could not be decoded.
+    #[error("cannot decode {what} of entry {entry:?}: {message}")]
+    Decode {
+        /// Entry name.
+        entry: String,
+        /// What was being decoded.
+        what: &'static str,
+        /// The decoder's message.
+        message: String,
+    },
+    /// A format-level rule was violated.
+    #[error("{source} ({context})")]
+    Format {
+        /// Where.
+        context: String,
+        /// The rule.
+        source: FormatError,
+    },
+    /// A write would change an immutable name.
+    #[error("release {label} already exists with id {existing}; releases are immutable, choose a new version")]
+    ReleaseExists {
+        /// `name@version`.
+        label: String,
+        /// Its id.
+        existing: ObjectId,
+    },
+    /// A write references an object that is not in the store.
+    #[error("release references object {object} (entry {entry:?}, role {role:?}) that was never stored")]
+    DanglingReference {
+        /// The object id.
+        object: ObjectId,
+        /// Entry name.
+        entry: String,
+        /// Role.
+        role: String,
+    },
+}
+
+impl ReaderError {
+    pub(crate) fn io(op: &'static str, path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> ReaderError {
+        let path = path.into();
+        move |source| ReaderError::Io { op, path, source }
+    }
+    pub(crate) fn format(context: impl Into<String>) -> impl FnOnce(FormatError) -> ReaderError {
+        let context = context.into();
+        move |source| ReaderError::Format { context, source }
+    }
+}
+
+/// Result alias.
+pub type Result<T, E = ReaderError> = std::result::Result<T, E>;
