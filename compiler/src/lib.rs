@@ -5,7 +5,9 @@
 //! format into typed data, the stages register, grid, align and encode it, and the result is
 //! written into the object store through `regolith_reader::write`.
 
+pub mod encode;
 pub mod error;
+pub mod export;
 pub mod ingest;
 
 pub use error::IngestError;

@@ -1,0 +1,68 @@
+//! Command-line arguments (clap derive). Parsing only: `main.rs` dispatches to `commands/`.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand, ValueEnum};
+
+/// regolith — compile terrain surveys into a certified, versioned terrain database for
+/// planetary-rover simulators, and measure how close simulation is to reality.
+#[derive(Debug, Parser)]
+#[command(name = "regolith", version, propagate_version = true)]
+#[command(after_help = "Exit codes: 0 ok, 1 a check failed (verify), 2 usage or input error.\n\
+Format spec: format-spec/SPEC.md (regolith.db/1).")]
+pub struct Cli {
+    /// Print machine-readable JSON on stdout instead of the human summary.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// The command.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Rehash every object reachable from every release; exit 1 on any corrupt or missing one.
+    Verify {
+        /// The database folder.
+        db: PathBuf,
+    },
+    /// Summarise a database, a release or one entry.
+    Inspect {
+        /// The database folder.
+        db: PathBuf,
+        /// A release: `name@version`, `latest`, or an id (prefix of at least 6 hex digits).
+        release: Option<String>,
+        /// An entry name, e.g. `laser/0.015`.
+        entry: Option<String>,
+    },
+    /// Write an entry as plain files with their metadata (never partially written).
+    Export {
+        /// The database folder.
+        db: PathBuf,
+        /// The release.
+        release: String,
+        /// The entry.
+        entry: String,
+        /// Output folder; must not exist yet or be empty.
+        #[arg(long)]
+        to: PathBuf,
+        /// Also write an engine-specific heightfield variant.
+        #[arg(long, value_enum)]
+        profile: Option<Profile>,
+    },
+    /// Remove objects no release references (safe: holds the database's write lock).
+    Gc {
+        /// The database folder.
+        db: PathBuf,
+    },
+}
+
+/// Engine-specific export variants (SPEC.md §5.1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Profile {
+    /// Square 2^n+1 grid, 16-bit PNG, `<heightmap><size>` in the sidecar.
+    Gazebo,
+    /// Unreal landscape size, value 32768 = z 0, ZScale in the sidecar.
+    Unreal,
+}
