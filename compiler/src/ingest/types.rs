@@ -13,8 +13,8 @@ pub const IDENTITY4: Matrix4 =
 
 /// Applies a [`Matrix4`] to a point.
 pub fn transform(m: &Matrix4, p: [f64; 3]) -> [f64; 3] {
-    let r = |i: usize| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3];
-    [r(0), r(1), r(2)]
+    let r = |row: &[f64; 4]| row[0] * p[0] + row[1] * p[1] + row[2] * p[2] + row[3];
+    [r(&m[0]), r(&m[1]), r(&m[2])]
 }
 
 /// A point cloud in the frame its file uses (scanner frame for RIEGL exports).
