@@ -9,5 +9,7 @@ pub mod encode;
 pub mod error;
 pub mod export;
 pub mod ingest;
+pub mod stage;
+pub mod stages;
 
 pub use error::IngestError;

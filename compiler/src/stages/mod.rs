@@ -1,0 +1,1 @@
+//! The stages of `regolith compile`, one file each, in pipeline order (see `stage.rs`).
