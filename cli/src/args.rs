@@ -8,8 +8,10 @@ use clap::{Parser, Subcommand, ValueEnum};
 /// planetary-rover simulators, and measure how close simulation is to reality.
 #[derive(Debug, Parser)]
 #[command(name = "regolith", version, propagate_version = true)]
-#[command(after_help = "Exit codes: 0 ok, 1 a check failed (verify), 2 usage or input error.\n\
-Format spec: format-spec/SPEC.md (regolith.db/1).")]
+#[command(
+    after_help = "Exit codes: 0 ok, 1 a check failed (verify), 2 usage or input error.\n\
+Format spec: format-spec/SPEC.md (regolith.db/1)."
+)]
 pub struct Cli {
     /// Print machine-readable JSON on stdout instead of the human summary.
     #[arg(long, global = true)]

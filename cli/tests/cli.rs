@@ -7,7 +7,10 @@ use regolith_reader::Writer;
 use serde_json::Value;
 
 fn regolith(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_regolith")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_regolith"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 fn sample_db(dir: &Path) -> String {
@@ -25,8 +28,17 @@ fn verify_exit_codes() {
     let v: Value = serde_json::from_slice(&ok.stdout).unwrap();
     assert_eq!(v["ok"], true);
     // Corrupt one object: exit 1 naming it.
-    let release = regolith_reader::Database::open(&db).unwrap().release("latest").unwrap();
-    let f = release.manifest.entry("laser/0.05").unwrap().file("height").unwrap().clone();
+    let release = regolith_reader::Database::open(&db)
+        .unwrap()
+        .release("latest")
+        .unwrap();
+    let f = release
+        .manifest
+        .entry("laser/0.05")
+        .unwrap()
+        .file("height")
+        .unwrap()
+        .clone();
     let path = Path::new(&db).join(f.object.object_path());
     let mut bytes = std::fs::read(&path).unwrap();
     bytes[20] ^= 1;
@@ -34,7 +46,10 @@ fn verify_exit_codes() {
     let bad = regolith(&["verify", &db]);
     assert_eq!(bad.status.code(), Some(1));
     let text = String::from_utf8_lossy(&bad.stdout);
-    assert!(text.contains(&f.object.to_hex()) && text.contains("laser/0.05"), "{text}");
+    assert!(
+        text.contains(&f.object.to_hex()) && text.contains("laser/0.05"),
+        "{text}"
+    );
     // Not a database: exit 2 with a message, no panic.
     let none = regolith(&["verify", dir.path().to_str().unwrap()]);
     assert_eq!(none.status.code(), Some(2));
@@ -52,7 +67,10 @@ fn inspect_lists_releases_and_entries() {
     assert_eq!(v["releases"][0]["release"], "sample@1.0.0");
     let out = regolith(&["inspect", &db, "latest"]);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("laser/0.05") && text.contains("heightfield") && text.contains("captures"), "{text}");
+    assert!(
+        text.contains("laser/0.05") && text.contains("heightfield") && text.contains("captures"),
+        "{text}"
+    );
     let out = regolith(&["inspect", &db, "sample@1.0.0", "reports/dem", "--json"]);
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["body"]["report"], "dem");
@@ -64,25 +82,67 @@ fn export_writes_fixed_names_and_engine_variants() {
     let dir = tempfile::tempdir().unwrap();
     let db = sample_db(dir.path());
     let to = dir.path().join("out");
-    let out = regolith(&["export", &db, "latest", "laser/0.05", "--to", to.to_str().unwrap(), "--profile", "gazebo"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    for f in ["height.png", "height.exr", "mask.png", "height.json", "height_gazebo.png", "height_gazebo.json"] {
+    let out = regolith(&[
+        "export",
+        &db,
+        "latest",
+        "laser/0.05",
+        "--to",
+        to.to_str().unwrap(),
+        "--profile",
+        "gazebo",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in [
+        "height.png",
+        "height.exr",
+        "mask.png",
+        "height.json",
+        "height_gazebo.png",
+        "height_gazebo.json",
+    ] {
         assert!(to.join(f).is_file(), "{f}");
     }
-    let side: Value = serde_json::from_slice(&std::fs::read(to.join("height.json")).unwrap()).unwrap();
+    let side: Value =
+        serde_json::from_slice(&std::fs::read(to.join("height.json")).unwrap()).unwrap();
     assert_eq!(side["width"], regolith_tests::sample::W);
     assert_eq!(side["row_order"], "north-up");
-    let gz: Value = serde_json::from_slice(&std::fs::read(to.join("height_gazebo.json")).unwrap()).unwrap();
+    let gz: Value =
+        serde_json::from_slice(&std::fs::read(to.join("height_gazebo.json")).unwrap()).unwrap();
     let n = gz["size_px"].as_u64().unwrap();
     assert_eq!(n, 17, "smallest 2^n+1 >= the larger side (17)");
-    let img = regolith_reader::heightfield::decode_grey_png(&std::fs::read(to.join("height_gazebo.png")).unwrap(), 4097).unwrap();
+    let img = regolith_reader::heightfield::decode_grey_png(
+        &std::fs::read(to.join("height_gazebo.png")).unwrap(),
+        4097,
+    )
+    .unwrap();
     assert_eq!((img.width, img.height, img.bit_depth), (17, 17, 16));
     // A second export into the now non-empty folder is refused and changes nothing.
-    let again = regolith(&["export", &db, "latest", "laser/0.05", "--to", to.to_str().unwrap()]);
+    let again = regolith(&[
+        "export",
+        &db,
+        "latest",
+        "laser/0.05",
+        "--to",
+        to.to_str().unwrap(),
+    ]);
     assert_eq!(again.status.code(), Some(2));
     // Other kinds export their roles.
     let cam = dir.path().join("cam");
-    assert!(regolith(&["export", &db, "latest", "cameras/navcam_left", "--to", cam.to_str().unwrap()]).status.success());
+    assert!(regolith(&[
+        "export",
+        &db,
+        "latest",
+        "cameras/navcam_left",
+        "--to",
+        cam.to_str().unwrap()
+    ])
+    .status
+    .success());
     assert!(cam.join("calibration.json").is_file() && cam.join("entry.json").is_file());
 }
 

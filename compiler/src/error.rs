@@ -61,15 +61,24 @@ pub enum IngestError {
 impl IngestError {
     /// Wraps the error with a file path.
     pub fn in_file(self, path: impl Into<PathBuf>) -> IngestError {
-        IngestError::WithPath { path: path.into(), err: Box::new(self) }
+        IngestError::WithPath {
+            path: path.into(),
+            err: Box::new(self),
+        }
     }
     /// Wraps the error with a 1-based line number.
     pub fn at_line(self, line: u64) -> IngestError {
-        IngestError::AtLine { line, err: Box::new(self) }
+        IngestError::AtLine {
+            line,
+            err: Box::new(self),
+        }
     }
     /// Wraps the error with a byte offset.
     pub fn at_offset(self, offset: u64) -> IngestError {
-        IngestError::AtOffset { offset, err: Box::new(self) }
+        IngestError::AtOffset {
+            offset,
+            err: Box::new(self),
+        }
     }
     /// A syntax error; `found` is quoted and truncated to 40 characters.
     pub fn syntax(expected: impl Into<String>, found: &str) -> IngestError {
@@ -77,7 +86,10 @@ impl IngestError {
         if found.chars().count() > 40 {
             f.push('…');
         }
-        IngestError::Syntax { expected: expected.into(), found: format!("{f:?}") }
+        IngestError::Syntax {
+            expected: expected.into(),
+            found: format!("{f:?}"),
+        }
     }
     /// An invalid-value error.
     pub fn invalid(msg: impl Into<String>) -> IngestError {
@@ -94,7 +106,12 @@ mod tests {
 
     #[test]
     fn message_names_line_and_file_last() {
-        let e = IngestError::syntax("a number", "abc").at_line(12).in_file("scans/pos1.asc");
-        assert_eq!(e.to_string(), "line 12: expected a number, found \"abc\" (in scans/pos1.asc)");
+        let e = IngestError::syntax("a number", "abc")
+            .at_line(12)
+            .in_file("scans/pos1.asc");
+        assert_eq!(
+            e.to_string(),
+            "line 12: expected a number, found \"abc\" (in scans/pos1.asc)"
+        );
     }
 }

@@ -41,24 +41,37 @@ fn resample(hf: &Heightfield, n: usize) -> (Vec<f64>, f64) {
     let mut out = Vec::with_capacity(n * n);
     for j in 0..n {
         for i in 0..n {
-            out.push(sample(hf, m.origin_m[0] + i as f64 * s, m.origin_m[1] - j as f64 * s));
+            out.push(sample(
+                hf,
+                m.origin_m[0] + i as f64 * s,
+                m.origin_m[1] - j as f64 * s,
+            ));
         }
     }
     (out, s)
 }
 
 fn range(z: &[f64]) -> (f64, f64) {
-    z.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)))
+    z.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        })
 }
 
 /// Gazebo (classic and gz): the smallest `2^n+1 ≥` the larger side, at most 4097.
 pub fn gazebo(hf: &Heightfield) -> Result<EngineVariant, EncodeError> {
     let side = hf.meta.width.max(hf.meta.height) as usize;
-    let n = (1..=12).map(|k| (1usize << k) + 1).find(|&n| n >= side).unwrap_or(4097);
+    let n = (1..=12)
+        .map(|k| (1usize << k) + 1)
+        .find(|&n| n >= side)
+        .unwrap_or(4097);
     let (z, s) = resample(hf, n);
     let (lo, hi) = range(&z);
     let zs = if hi > lo { hi - lo } else { 1e-3 };
-    let values: Vec<u16> = z.iter().map(|v| (((v - lo) / zs) * 65535.0).round().clamp(0.0, 65535.0) as u16).collect();
+    let values: Vec<u16> = z
+        .iter()
+        .map(|v| (((v - lo) / zs) * 65535.0).round().clamp(0.0, 65535.0) as u16)
+        .collect();
     let extent = s * (n - 1) as f64;
     let m = &hf.meta;
     let sidecar = json!({
@@ -71,7 +84,11 @@ pub fn gazebo(hf: &Heightfield) -> Result<EngineVariant, EncodeError> {
         "resampling": "bilinear from the hole-filled heights at the new cell centres; south/east padded with the edge value",
         "note": "Gazebo centres the heightmap on pos; heights = value / 65535 * size.z + pos.z. Check the row orientation with an asymmetric terrain in your Gazebo version.",
     });
-    Ok(EngineVariant { size: n, png: png::grey16(n as u32, n as u32, &values)?, sidecar })
+    Ok(EngineVariant {
+        size: n,
+        png: png::grey16(n as u32, n as u32, &values)?,
+        sidecar,
+    })
 }
 
 /// Unreal Engine landscape: the smallest recommended size ≥ the larger side.
@@ -86,7 +103,11 @@ pub fn unreal(hf: &Heightfield) -> Result<EngineVariant, EncodeError> {
     let z_scale = range_cm * 128.0 / 32767.0;
     let values: Vec<u16> = z
         .iter()
-        .map(|v| (32768.0 + (v - lo) * 100.0 * 128.0 / z_scale).round().clamp(0.0, 65535.0) as u16)
+        .map(|v| {
+            (32768.0 + (v - lo) * 100.0 * 128.0 / z_scale)
+                .round()
+                .clamp(0.0, 65535.0) as u16
+        })
         .collect();
     let m = &hf.meta;
     let sidecar = json!({
@@ -98,5 +119,9 @@ pub fn unreal(hf: &Heightfield) -> Result<EngineVariant, EncodeError> {
         "resampling": "bilinear from the hole-filled heights at the new cell centres; south/east padded with the edge value",
         "note": "value 32768 = z 0 relative to the actor; Unreal is left-handed (y flipped), centimetres",
     });
-    Ok(EngineVariant { size: n, png: png::grey16(n as u32, n as u32, &values)?, sidecar })
+    Ok(EngineVariant {
+        size: n,
+        png: png::grey16(n as u32, n as u32, &values)?,
+        sidecar,
+    })
 }

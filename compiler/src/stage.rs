@@ -26,7 +26,10 @@ pub struct StageError {
 impl StageError {
     /// A new error.
     pub fn new(stage: &'static str, message: impl Into<String>) -> StageError {
-        StageError { stage, message: message.into() }
+        StageError {
+            stage,
+            message: message.into(),
+        }
     }
 }
 
@@ -51,7 +54,11 @@ impl Reporter {
     /// Records a warning.
     pub fn warn(&self, stage: &'static str, kind: &'static str, message: impl Into<String>) {
         if let Ok(mut w) = self.warnings.lock() {
-            w.push(Warning { stage, kind, message: message.into() });
+            w.push(Warning {
+                stage,
+                kind,
+                message: message.into(),
+            });
         }
     }
 

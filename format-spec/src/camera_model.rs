@@ -77,7 +77,9 @@ impl CameraModel {
     /// Checks ranges: positive size and focal lengths, finite values, known model id.
     pub fn validate(&self) -> Result<(), FormatError> {
         let d = self.distortion;
-        let all = [self.fx, self.fy, self.cx, self.cy, self.skew, d.k1, d.k2, d.p1, d.p2, d.k3];
+        let all = [
+            self.fx, self.fy, self.cx, self.cy, self.skew, d.k1, d.k2, d.p1, d.p2, d.k3,
+        ];
         if self.model != MODEL_ID {
             return Err(FormatError::InvalidCamera(format!(
                 "model {:?}: expected {MODEL_ID:?}",
@@ -85,7 +87,9 @@ impl CameraModel {
             )));
         }
         if self.width == 0 || self.height == 0 {
-            return Err(FormatError::InvalidCamera("width and height must be > 0".into()));
+            return Err(FormatError::InvalidCamera(
+                "width and height must be > 0".into(),
+            ));
         }
         if !all.iter().all(|v| v.is_finite()) || self.fx <= 0.0 || self.fy <= 0.0 {
             return Err(FormatError::InvalidCamera(
@@ -97,7 +101,10 @@ impl CameraModel {
 
     /// The same camera without distortion (the undistorted images' model).
     pub fn undistorted(&self) -> CameraModel {
-        CameraModel { distortion: Distortion::default(), ..self.clone() }
+        CameraModel {
+            distortion: Distortion::default(),
+            ..self.clone()
+        }
     }
 
     /// Applies distortion to normalised coordinates.
@@ -113,7 +120,10 @@ impl CameraModel {
 
     /// Normalised distorted coordinates to pixels.
     pub fn to_pixel(&self, xd: f64, yd: f64) -> [f64; 2] {
-        [self.fx * xd + self.skew * yd + self.cx, self.fy * yd + self.cy]
+        [
+            self.fx * xd + self.skew * yd + self.cx,
+            self.fy * yd + self.cy,
+        ]
     }
 
     /// Projects a camera-frame point (z forward) to a pixel; `None` behind the camera.
@@ -156,7 +166,9 @@ impl CameraModel {
 
     /// The 3x3 matrix K, row-major.
     pub fn k_matrix(&self) -> [f64; 9] {
-        [self.fx, self.skew, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
+        [
+            self.fx, self.skew, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0,
+        ]
     }
 
     /// Distortion coefficients in OpenCV order `[k1, k2, p1, p2, k3]`.
@@ -173,7 +185,13 @@ mod tests {
 
     fn navcam() -> CameraModel {
         CameraModel {
-            distortion: Distortion { k1: -0.21, k2: 0.09, p1: 4e-4, p2: -2e-4, k3: -0.01 },
+            distortion: Distortion {
+                k1: -0.21,
+                k2: 0.09,
+                p1: 4e-4,
+                p2: -2e-4,
+                k3: -0.01,
+            },
             ..CameraModel::pinhole(1280, 1024, 832.0, 831.0, 639.5, 511.5)
         }
     }

@@ -189,9 +189,10 @@ mod tests {
 
     #[test]
     fn rfc8785_example_sorting_and_escapes() {
-        let v: Value =
-            serde_json::from_str(r#"{"\ufb33":5,"\u20ac":1,"\r":2,"\ud83d\ude00":3,"1":4,"a\u0001":"x\u001f\"y"}"#)
-                .unwrap();
+        let v: Value = serde_json::from_str(
+            r#"{"\ufb33":5,"\u20ac":1,"\r":2,"\ud83d\ude00":3,"1":4,"a\u0001":"x\u001f\"y"}"#,
+        )
+        .unwrap();
         assert_eq!(
             to_string(&v),
             "{\"\\r\":2,\"1\":4,\"a\\u0001\":\"x\\u001f\\\"y\",\"\u{20ac}\":1,\"\u{1f600}\":3,\"\u{fb33}\":5}"

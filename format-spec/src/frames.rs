@@ -24,20 +24,38 @@ impl Default for Pose {
 
 impl Pose {
     /// The identity.
-    pub const IDENTITY: Pose = Pose { translation_m: [0.0; 3], rotation_xyzw: [0.0, 0.0, 0.0, 1.0] };
+    pub const IDENTITY: Pose = Pose {
+        translation_m: [0.0; 3],
+        rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+    };
 
     /// Builds a pose from a row-major rotation matrix and a translation.
     pub fn from_matrix(r: [[f64; 3]; 3], t: [f64; 3]) -> Pose {
-        Pose { translation_m: t, rotation_xyzw: quat_from_matrix(r) }
+        Pose {
+            translation_m: t,
+            rotation_xyzw: quat_from_matrix(r),
+        }
     }
 
     /// The row-major rotation matrix.
     pub fn rotation_matrix(&self) -> [[f64; 3]; 3] {
         let [x, y, z, w] = normalise(self.rotation_xyzw);
         [
-            [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
-            [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
-            [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
+            [
+                1.0 - 2.0 * (y * y + z * z),
+                2.0 * (x * y - z * w),
+                2.0 * (x * z + y * w),
+            ],
+            [
+                2.0 * (x * y + z * w),
+                1.0 - 2.0 * (x * x + z * z),
+                2.0 * (y * z - x * w),
+            ],
+            [
+                2.0 * (x * z - y * w),
+                2.0 * (y * z + x * w),
+                1.0 - 2.0 * (x * x + y * y),
+            ],
         ]
     }
 
@@ -64,25 +82,39 @@ impl Pose {
 
     /// `self * other`: if self is `a_from_b` and other is `b_from_c`, the result is `a_from_c`.
     pub fn compose(&self, other: &Pose) -> Pose {
-        let q = quat_mul(normalise(self.rotation_xyzw), normalise(other.rotation_xyzw));
+        let q = quat_mul(
+            normalise(self.rotation_xyzw),
+            normalise(other.rotation_xyzw),
+        );
         let t = self.transform_point(other.translation_m);
-        Pose { translation_m: t, rotation_xyzw: canonical(q) }
+        Pose {
+            translation_m: t,
+            rotation_xyzw: canonical(q),
+        }
     }
 
     /// The inverse transform (`b_from_a` for `a_from_b`).
     pub fn inverse(&self) -> Pose {
         let [x, y, z, w] = normalise(self.rotation_xyzw);
         let qi = [-x, -y, -z, w];
-        let ri = Pose { translation_m: [0.0; 3], rotation_xyzw: qi };
+        let ri = Pose {
+            translation_m: [0.0; 3],
+            rotation_xyzw: qi,
+        };
         let t = ri.rotate(self.translation_m);
-        Pose { translation_m: [-t[0], -t[1], -t[2]], rotation_xyzw: canonical(qi) }
+        Pose {
+            translation_m: [-t[0], -t[1], -t[2]],
+            rotation_xyzw: canonical(qi),
+        }
     }
 
     /// Rotation angle between two poses, degrees.
     pub fn angle_to_deg(&self, other: &Pose) -> f64 {
         let a = normalise(self.rotation_xyzw);
         let b = normalise(other.rotation_xyzw);
-        let dot = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]).abs().min(1.0);
+        let dot = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3])
+            .abs()
+            .min(1.0);
         2.0 * dot.acos().to_degrees()
     }
 
@@ -132,16 +164,36 @@ pub fn quat_from_matrix(r: [[f64; 3]; 3]) -> [f64; 4] {
     let tr = r[0][0] + r[1][1] + r[2][2];
     let q = if tr > 0.0 {
         let s = (tr + 1.0).sqrt() * 2.0;
-        [(r[2][1] - r[1][2]) / s, (r[0][2] - r[2][0]) / s, (r[1][0] - r[0][1]) / s, 0.25 * s]
+        [
+            (r[2][1] - r[1][2]) / s,
+            (r[0][2] - r[2][0]) / s,
+            (r[1][0] - r[0][1]) / s,
+            0.25 * s,
+        ]
     } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
         let s = (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt() * 2.0;
-        [0.25 * s, (r[0][1] + r[1][0]) / s, (r[0][2] + r[2][0]) / s, (r[2][1] - r[1][2]) / s]
+        [
+            0.25 * s,
+            (r[0][1] + r[1][0]) / s,
+            (r[0][2] + r[2][0]) / s,
+            (r[2][1] - r[1][2]) / s,
+        ]
     } else if r[1][1] > r[2][2] {
         let s = (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt() * 2.0;
-        [(r[0][1] + r[1][0]) / s, 0.25 * s, (r[1][2] + r[2][1]) / s, (r[0][2] - r[2][0]) / s]
+        [
+            (r[0][1] + r[1][0]) / s,
+            0.25 * s,
+            (r[1][2] + r[2][1]) / s,
+            (r[0][2] - r[2][0]) / s,
+        ]
     } else {
         let s = (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt() * 2.0;
-        [(r[0][2] + r[2][0]) / s, (r[1][2] + r[2][1]) / s, 0.25 * s, (r[1][0] - r[0][1]) / s]
+        [
+            (r[0][2] + r[2][0]) / s,
+            (r[1][2] + r[2][1]) / s,
+            0.25 * s,
+            (r[1][0] - r[0][1]) / s,
+        ]
     };
     canonical(q)
 }
@@ -153,7 +205,12 @@ pub fn quat_from_axis_angle(axis: [f64; 3], angle_rad: f64) -> [f64; 4] {
         return [0.0, 0.0, 0.0, 1.0];
     }
     let s = (angle_rad / 2.0).sin() / n;
-    canonical([axis[0] * s, axis[1] * s, axis[2] * s, (angle_rad / 2.0).cos()])
+    canonical([
+        axis[0] * s,
+        axis[1] * s,
+        axis[2] * s,
+        (angle_rad / 2.0).cos(),
+    ])
 }
 
 #[cfg(test)]

@@ -75,8 +75,14 @@ impl fmt::Debug for ObjectId {
 impl FromStr for ObjectId {
     type Err = FormatError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let bad = || FormatError::BadObjectId { found: s.chars().take(80).collect() };
-        if s.len() != 64 || !s.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
+        let bad = || FormatError::BadObjectId {
+            found: s.chars().take(80).collect(),
+        };
+        if s.len() != 64
+            || !s
+                .bytes()
+                .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+        {
             return Err(bad());
         }
         let mut out = [0u8; 32];

@@ -59,7 +59,10 @@ mod tests {
     fn check_len_rejects_above_limit() {
         assert!(Limits::check_len("points", 11, 10).is_err());
         assert_eq!(Limits::check_len("points", 10, 10).unwrap(), 10);
-        let l = Limits { max_alloc_bytes: 64, ..Limits::default() };
+        let l = Limits {
+            max_alloc_bytes: 64,
+            ..Limits::default()
+        };
         assert!(l.vec_with_capacity::<f64>("buf", 9).is_err());
         assert_eq!(l.vec_with_capacity::<f64>("buf", 8).unwrap().capacity(), 8);
     }

@@ -178,7 +178,11 @@ impl Release {
             }
             for t in &e.tiles {
                 for (role, f) in &t.files {
-                    out.push((e.name.as_str(), format!("tile/{}/{}/{}/{role}", t.level, t.x, t.y), f));
+                    out.push((
+                        e.name.as_str(),
+                        format!("tile/{}/{}/{}/{role}", t.level, t.x, t.y),
+                        f,
+                    ));
                 }
             }
         }
@@ -219,7 +223,11 @@ impl Release {
                     e.name
                 )));
             }
-            for role in e.files.keys().chain(e.tiles.iter().flat_map(|t| t.files.keys())) {
+            for role in e
+                .files
+                .keys()
+                .chain(e.tiles.iter().flat_map(|t| t.files.keys()))
+            {
                 check_name("role", role)?;
             }
             if crate::kinds::is_tiled(&e.kind) && e.tiles.is_empty() {
@@ -241,12 +249,16 @@ impl Entry {
 
     /// The level-0 tile, which covers the whole entry.
     pub fn root_tile(&self) -> Option<&Tile> {
-        self.tiles.iter().find(|t| t.level == 0 && t.x == 0 && t.y == 0)
+        self.tiles
+            .iter()
+            .find(|t| t.level == 0 && t.x == 0 && t.y == 0)
     }
 
     /// Looks a role up in the whole-entry files, then in the root tile.
     pub fn file(&self, role: &str) -> Option<&FileRef> {
-        self.files.get(role).or_else(|| self.root_tile().and_then(|t| t.files.get(role)))
+        self.files
+            .get(role)
+            .or_else(|| self.root_tile().and_then(|t| t.files.get(role)))
     }
 }
 
@@ -259,7 +271,9 @@ pub fn check_schema(schema: &str) -> Result<(), FormatError> {
     if ok {
         Ok(())
     } else {
-        Err(FormatError::UnsupportedSchema { found: schema.chars().take(80).collect() })
+        Err(FormatError::UnsupportedSchema {
+            found: schema.chars().take(80).collect(),
+        })
     }
 }
 
@@ -268,7 +282,8 @@ pub fn check_schema(schema: &str) -> Result<(), FormatError> {
 pub fn check_name(what: &str, s: &str) -> Result<(), FormatError> {
     let ok = !s.is_empty()
         && s.len() <= 128
-        && s.bytes().all(|b| b.is_ascii_alphanumeric() || b"._@/+-".contains(&b))
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b"._@/+-".contains(&b))
         && !s.starts_with(['.', '/'])
         && !s.ends_with('/')
         && s.split('/').all(|seg| !seg.is_empty() && seg != "..");
@@ -301,11 +316,22 @@ mod tests {
     use super::*;
 
     fn fref(b: &[u8]) -> FileRef {
-        FileRef { object: ObjectId::of_bytes(b), size: b.len() as u64, media_type: "application/json".into() }
+        FileRef {
+            object: ObjectId::of_bytes(b),
+            size: b.len() as u64,
+            media_type: "application/json".into(),
+        }
     }
 
     fn sample() -> Release {
-        let mut r = new_release("t", "1.0.0", Producer { name: "x".into(), version: "0".into() });
+        let mut r = new_release(
+            "t",
+            "1.0.0",
+            Producer {
+                name: "x".into(),
+                version: "0".into(),
+            },
+        );
         r.entries.push(Entry {
             name: "reports/b".into(),
             kind: "report".into(),

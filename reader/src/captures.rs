@@ -59,13 +59,19 @@ impl Captures {
 
     /// Decodes every image message, in log-time order.
     pub fn images(&self) -> Result<Vec<CaptureImage>> {
-        let err = |message: String| ReaderError::Decode { entry: self.entry.clone(), what: "captures MCAP", message };
+        let err = |message: String| ReaderError::Decode {
+            entry: self.entry.clone(),
+            what: "captures MCAP",
+            message,
+        };
         let stream = mcap::MessageStream::new(&self.mcap).map_err(|e| err(e.to_string()))?;
         let mut out = Vec::new();
         for m in stream {
             let m = m.map_err(|e| err(e.to_string()))?;
             let topic = m.channel.topic.as_str();
-            let Some((camera, kind)) = parse_image_topic(topic) else { continue };
+            let Some((camera, kind)) = parse_image_topic(topic) else {
+                continue;
+            };
             let (capture, frame) = self
                 .locate(m.log_time)
                 .ok_or_else(|| err(format!("message at {} ns matches no capture", m.log_time)))?;
@@ -73,9 +79,18 @@ impl Captures {
                 .cameras
                 .iter()
                 .find(|c| c.camera == camera)
-                .ok_or_else(|| err(format!("camera {camera:?} not in capture {:?}", capture.name)))?;
-            let v: Value = serde_json::from_slice(&m.data).map_err(|e| err(format!("{topic}: {e}")))?;
-            let b64 = v.get("data").and_then(Value::as_str).ok_or_else(|| err(format!("{topic}: no data field")))?;
+                .ok_or_else(|| {
+                    err(format!(
+                        "camera {camera:?} not in capture {:?}",
+                        capture.name
+                    ))
+                })?;
+            let v: Value =
+                serde_json::from_slice(&m.data).map_err(|e| err(format!("{topic}: {e}")))?;
+            let b64 = v
+                .get("data")
+                .and_then(Value::as_str)
+                .ok_or_else(|| err(format!("{topic}: no data field")))?;
             let data = base64::engine::general_purpose::STANDARD
                 .decode(b64)
                 .map_err(|e| err(format!("{topic}: base64: {e}")))?;
@@ -117,6 +132,10 @@ impl ReleaseView {
         self.entry_of_kind(entry, kinds::CAPTURES)?;
         let index: CapturesIndex = self.read_json(entry, roles::INDEX, "captures index")?;
         let mcap = self.read_file(entry, roles::MCAP)?;
-        Ok(Captures { index, mcap, entry: entry.to_string() })
+        Ok(Captures {
+            index,
+            mcap,
+            entry: entry.to_string(),
+        })
     }
 }

@@ -52,11 +52,13 @@ impl Database {
     pub fn open(path: impl AsRef<Path>) -> Result<Database> {
         let root = path.as_ref().to_path_buf();
         let marker = root.join(MARKER);
-        let bytes = fs::read(&marker).map_err(|_| ReaderError::NotADatabase { path: root.clone() })?;
+        let bytes =
+            fs::read(&marker).map_err(|_| ReaderError::NotADatabase { path: root.clone() })?;
         let v: serde_json::Value = serde_json::from_slice(&bytes)
             .map_err(|_| ReaderError::NotADatabase { path: root.clone() })?;
         let schema = v.get("schema").and_then(|s| s.as_str()).unwrap_or_default();
-        regolith_format::manifest::check_schema(schema).map_err(ReaderError::format(marker.display().to_string()))?;
+        regolith_format::manifest::check_schema(schema)
+            .map_err(ReaderError::format(marker.display().to_string()))?;
         Ok(Database { root })
     }
 
@@ -82,7 +84,11 @@ impl Database {
         match fs::read_to_string(&path) {
             Ok(s) => Ok(Some(parse_ref(&s, &path)?)),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-            Err(e) => Err(ReaderError::Io { op: "reading", path, source: e }),
+            Err(e) => Err(ReaderError::Io {
+                op: "reading",
+                path,
+                source: e,
+            }),
         }
     }
 
@@ -109,17 +115,26 @@ impl Database {
             }
         }
         if spec.len() >= 6 && spec.bytes().all(|b| b.is_ascii_hexdigit()) {
-            let mut hits: Vec<ObjectId> =
-                self.refs()?.into_values().filter(|id| id.to_hex().starts_with(spec)).collect();
+            let mut hits: Vec<ObjectId> = self
+                .refs()?
+                .into_values()
+                .filter(|id| id.to_hex().starts_with(spec))
+                .collect();
             hits.sort();
             hits.dedup();
             return match hits.as_slice() {
                 [one] => Ok(*one),
-                [] => Err(ReaderError::UnknownRelease { spec: spec.to_string() }),
-                _ => Err(ReaderError::AmbiguousRelease { spec: spec.to_string() }),
+                [] => Err(ReaderError::UnknownRelease {
+                    spec: spec.to_string(),
+                }),
+                _ => Err(ReaderError::AmbiguousRelease {
+                    spec: spec.to_string(),
+                }),
             };
         }
-        Err(ReaderError::UnknownRelease { spec: spec.to_string() })
+        Err(ReaderError::UnknownRelease {
+            spec: spec.to_string(),
+        })
     }
 
     /// Loads a release by any spec accepted by [`Database::resolve`].
@@ -132,9 +147,15 @@ impl Database {
     pub fn release_by_id(&self, id: &ObjectId) -> Result<ReleaseView> {
         let site = Site::new("<manifest>", MANIFEST_MEDIA_TYPE);
         let bytes = read_verified(&self.root, id, None, &site)?;
-        let manifest = Release::from_bytes(&bytes)
-            .map_err(ReaderError::format(format!("release manifest {}", id.short())))?;
-        Ok(ReleaseView { root: self.root.clone(), id: *id, manifest })
+        let manifest = Release::from_bytes(&bytes).map_err(ReaderError::format(format!(
+            "release manifest {}",
+            id.short()
+        )))?;
+        Ok(ReleaseView {
+            root: self.root.clone(),
+            id: *id,
+            manifest,
+        })
     }
 }
 
@@ -143,7 +164,11 @@ fn walk_refs(dir: &Path, prefix: &str, out: &mut BTreeMap<String, ObjectId>) -> 
     let mut names: Vec<_> = rd.filter_map(|e| e.ok()).map(|e| e.path()).collect();
     names.sort();
     for path in names {
-        let Some(name) = path.file_name().and_then(|n| n.to_str()).map(str::to_string) else {
+        let Some(name) = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .map(str::to_string)
+        else {
             continue;
         };
         if name.starts_with('.') {
@@ -161,7 +186,9 @@ fn walk_refs(dir: &Path, prefix: &str, out: &mut BTreeMap<String, ObjectId>) -> 
 }
 
 fn parse_ref(s: &str, path: &Path) -> Result<ObjectId> {
-    s.trim().parse().map_err(ReaderError::format(format!("ref file {}", path.display())))
+    s.trim()
+        .parse()
+        .map_err(ReaderError::format(format!("ref file {}", path.display())))
 }
 
 impl ReleaseView {
@@ -177,17 +204,23 @@ impl ReleaseView {
 
     /// An entry by name.
     pub fn entry(&self, name: &str) -> Result<&Entry> {
-        self.manifest.entry(name).ok_or_else(|| ReaderError::NoSuchEntry {
-            release: self.label(),
-            entry: name.to_string(),
-        })
+        self.manifest
+            .entry(name)
+            .ok_or_else(|| ReaderError::NoSuchEntry {
+                release: self.label(),
+                entry: name.to_string(),
+            })
     }
 
     /// An entry that must be of `kind`.
     pub fn entry_of_kind(&self, name: &str, kind: &'static str) -> Result<&Entry> {
         let e = self.entry(name)?;
         if e.kind != kind {
-            return Err(ReaderError::WrongKind { entry: name.to_string(), expected: kind, found: e.kind.clone() });
+            return Err(ReaderError::WrongKind {
+                entry: name.to_string(),
+                expected: kind,
+                found: e.kind.clone(),
+            });
         }
         Ok(e)
     }
@@ -203,7 +236,12 @@ impl ReleaseView {
     }
 
     /// Decodes a JSON file of an entry.
-    pub fn read_json<T: serde::de::DeserializeOwned>(&self, entry: &str, role: &str, what: &'static str) -> Result<T> {
+    pub fn read_json<T: serde::de::DeserializeOwned>(
+        &self,
+        entry: &str,
+        role: &str,
+        what: &'static str,
+    ) -> Result<T> {
         let bytes = self.read_file(entry, role)?;
         serde_json::from_slice(&bytes).map_err(|e| ReaderError::Decode {
             entry: entry.to_string(),

@@ -111,7 +111,9 @@ pub enum ReaderError {
         existing: ObjectId,
     },
     /// A write references an object that is not in the store.
-    #[error("release references object {object} (entry {entry:?}, role {role:?}) that was never stored")]
+    #[error(
+        "release references object {object} (entry {entry:?}, role {role:?}) that was never stored"
+    )]
     DanglingReference {
         /// The object id.
         object: ObjectId,
@@ -123,7 +125,10 @@ pub enum ReaderError {
 }
 
 impl ReaderError {
-    pub(crate) fn io(op: &'static str, path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> ReaderError {
+    pub(crate) fn io(
+        op: &'static str,
+        path: impl Into<PathBuf>,
+    ) -> impl FnOnce(std::io::Error) -> ReaderError {
         let path = path.into();
         move |source| ReaderError::Io { op, path, source }
     }

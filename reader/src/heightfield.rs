@@ -23,7 +23,9 @@ impl Heightfield {
         if col >= self.meta.width || row >= self.meta.height {
             return None;
         }
-        self.heights.get(row as usize * self.meta.width as usize + col as usize).copied()
+        self.heights
+            .get(row as usize * self.meta.width as usize + col as usize)
+            .copied()
     }
 }
 
@@ -43,7 +45,11 @@ pub struct GreyPng {
 pub fn decode_grey_png(bytes: &[u8], max_side: u32) -> std::result::Result<GreyPng, String> {
     let mut decoder = png::Decoder::new_with_limits(
         std::io::Cursor::new(bytes),
-        png::Limits { bytes: (max_side as usize).saturating_mul(max_side as usize).saturating_mul(2) },
+        png::Limits {
+            bytes: (max_side as usize)
+                .saturating_mul(max_side as usize)
+                .saturating_mul(2),
+        },
     );
     decoder.set_transformations(png::Transformations::IDENTITY);
     let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
@@ -54,14 +60,21 @@ pub fn decode_grey_png(bytes: &[u8], max_side: u32) -> std::result::Result<GreyP
     let mut buf = vec![0u8; reader.output_buffer_size()];
     let info = reader.next_frame(&mut buf).map_err(|e| e.to_string())?;
     if info.width > max_side || info.height > max_side {
-        return Err(format!("image side {}x{} exceeds {max_side}", info.width, info.height));
+        return Err(format!(
+            "image side {}x{} exceeds {max_side}",
+            info.width, info.height
+        ));
     }
     let n = info.width as usize * info.height as usize;
     let (samples, bit_depth) = match depth {
         png::BitDepth::Sixteen => {
             let mut s = Vec::with_capacity(n);
             for row in buf.chunks(info.line_size).take(info.height as usize) {
-                s.extend(row.chunks_exact(2).take(info.width as usize).map(|b| u16::from_be_bytes([b[0], b[1]])));
+                s.extend(
+                    row.chunks_exact(2)
+                        .take(info.width as usize)
+                        .map(|b| u16::from_be_bytes([b[0], b[1]])),
+                );
             }
             (s, 16)
         }
@@ -77,7 +90,12 @@ pub fn decode_grey_png(bytes: &[u8], max_side: u32) -> std::result::Result<GreyP
     if samples.len() != n {
         return Err("image data shorter than its header says".into());
     }
-    Ok(GreyPng { width: info.width, height: info.height, samples, bit_depth })
+    Ok(GreyPng {
+        width: info.width,
+        height: info.height,
+        samples,
+        bit_depth,
+    })
 }
 
 impl ReleaseView {
@@ -98,8 +116,8 @@ impl ReleaseView {
             what,
             message,
         };
-        let meta: HeightfieldMeta =
-            serde_json::from_value(e.meta.clone()).map_err(|m| decode("heightfield metadata", m.to_string()))?;
+        let meta: HeightfieldMeta = serde_json::from_value(e.meta.clone())
+            .map_err(|m| decode("heightfield metadata", m.to_string()))?;
         let max_side = meta.width.max(meta.height).max(1);
         let png = decode_grey_png(&self.read_file(entry, roles::HEIGHT)?, max_side)
             .map_err(|m| decode("height PNG", m))?;
@@ -116,8 +134,20 @@ impl ReleaseView {
                 ));
             }
         }
-        let heights = png.samples.iter().map(|&v| meta.height_of(v) as f32).collect();
-        let valid = mask.samples.iter().map(|&v| if v >= 128 { 255 } else { 0 }).collect();
-        Ok(Heightfield { meta, heights, valid })
+        let heights = png
+            .samples
+            .iter()
+            .map(|&v| meta.height_of(v) as f32)
+            .collect();
+        let valid = mask
+            .samples
+            .iter()
+            .map(|&v| if v >= 128 { 255 } else { 0 })
+            .collect();
+        Ok(Heightfield {
+            meta,
+            heights,
+            valid,
+        })
     }
 }

@@ -59,16 +59,26 @@ pub fn summarise_glb(b: &[u8]) -> std::result::Result<GlbSummary, String> {
     if le_u32(b, 16) != Some(0x4E4F_534A) {
         return Err("first chunk at byte 16 must be JSON".into());
     }
-    let json = b.get(20..20 + json_len).ok_or("JSON chunk runs past the end")?;
+    let json = b
+        .get(20..20 + json_len)
+        .ok_or("JSON chunk runs past the end")?;
     let v: Value = serde_json::from_slice(json).map_err(|e| format!("JSON chunk: {e}"))?;
-    let accessors = v.get("accessors").and_then(Value::as_array).cloned().unwrap_or_default();
+    let accessors = v
+        .get("accessors")
+        .and_then(Value::as_array)
+        .cloned()
+        .unwrap_or_default();
     let count = |idx: Option<u64>| -> u64 {
         idx.and_then(|i| accessors.get(i as usize))
             .and_then(|a| a.get("count"))
             .and_then(Value::as_u64)
             .unwrap_or(0)
     };
-    let meshes = v.get("meshes").and_then(Value::as_array).cloned().unwrap_or_default();
+    let meshes = v
+        .get("meshes")
+        .and_then(Value::as_array)
+        .cloned()
+        .unwrap_or_default();
     let mut s = GlbSummary {
         meshes: meshes.len(),
         primitives: 0,
@@ -76,13 +86,25 @@ pub fn summarise_glb(b: &[u8]) -> std::result::Result<GlbSummary, String> {
         triangles: 0,
         normals: true,
         uvs: true,
-        images: v.get("images").and_then(Value::as_array).map_or(0, Vec::len),
+        images: v
+            .get("images")
+            .and_then(Value::as_array)
+            .map_or(0, Vec::len),
     };
     for m in &meshes {
-        for p in m.get("primitives").and_then(Value::as_array).into_iter().flatten() {
+        for p in m
+            .get("primitives")
+            .and_then(Value::as_array)
+            .into_iter()
+            .flatten()
+        {
             s.primitives += 1;
             let attrs = p.get("attributes");
-            s.vertices += count(attrs.and_then(|a| a.get("POSITION")).and_then(Value::as_u64));
+            s.vertices += count(
+                attrs
+                    .and_then(|a| a.get("POSITION"))
+                    .and_then(Value::as_u64),
+            );
             s.triangles += count(p.get("indices").and_then(Value::as_u64)) / 3;
             s.normals &= attrs.and_then(|a| a.get("NORMAL")).is_some();
             s.uvs &= attrs.and_then(|a| a.get("TEXCOORD_0")).is_some();

@@ -25,7 +25,10 @@ pub struct Site {
 impl Site {
     /// A site.
     pub fn new(entry: &str, role: &str) -> Site {
-        Site { entry: entry.to_string(), role: role.to_string() }
+        Site {
+            entry: entry.to_string(),
+            role: role.to_string(),
+        }
     }
 }
 
@@ -35,10 +38,16 @@ pub fn object_path(root: &Path, id: &ObjectId) -> PathBuf {
 }
 
 /// Reads an object whole, checking its size (if given) and its hash.
-pub fn read_verified(root: &Path, id: &ObjectId, size: Option<u64>, site: &Site) -> Result<Vec<u8>> {
+pub fn read_verified(
+    root: &Path,
+    id: &ObjectId,
+    size: Option<u64>,
+    site: &Site,
+) -> Result<Vec<u8>> {
     let mut r = VerifyingReader::open(root, id, size, site.clone())?;
     let mut buf = Vec::new();
-    r.read_to_end(&mut buf).map_err(|e| unwrap_verify_error(e, root, id))?;
+    r.read_to_end(&mut buf)
+        .map_err(|e| unwrap_verify_error(e, root, id))?;
     Ok(buf)
 }
 
@@ -60,23 +69,47 @@ pub struct VerifyingReader {
 
 impl VerifyingReader {
     /// Opens an object for verified streaming.
-    pub fn open(root: &Path, id: &ObjectId, size: Option<u64>, site: Site) -> Result<VerifyingReader> {
+    pub fn open(
+        root: &Path,
+        id: &ObjectId,
+        size: Option<u64>,
+        site: Site,
+    ) -> Result<VerifyingReader> {
         let path = object_path(root, id);
         let file = File::open(&path).map_err(|e| {
             if e.kind() == io::ErrorKind::NotFound {
-                ReaderError::MissingObject { object: *id, entry: site.entry.clone(), role: site.role.clone() }
+                ReaderError::MissingObject {
+                    object: *id,
+                    entry: site.entry.clone(),
+                    role: site.role.clone(),
+                }
             } else {
-                ReaderError::Io { op: "opening", path: path.clone(), source: e }
+                ReaderError::Io {
+                    op: "opening",
+                    path: path.clone(),
+                    source: e,
+                }
             }
         })?;
-        Ok(VerifyingReader { file, hasher: Some(Hasher::new()), read: 0, id: *id, size, site })
+        Ok(VerifyingReader {
+            file,
+            hasher: Some(Hasher::new()),
+            read: 0,
+            id: *id,
+            size,
+            site,
+        })
     }
 
     fn check(&mut self) -> Option<ReaderError> {
         let hasher = self.hasher.take()?;
         let found = hasher.finish();
         let detail = if self.size.is_some_and(|s| s != self.read) {
-            Some(format!("expected {} bytes, found {}", self.size.unwrap_or(0), self.read))
+            Some(format!(
+                "expected {} bytes, found {}",
+                self.size.unwrap_or(0),
+                self.read
+            ))
         } else if found != self.id {
             Some(format!("content hashes to {found}"))
         } else {
@@ -117,7 +150,15 @@ pub fn unwrap_verify_error(e: io::Error, root: &Path, id: &ObjectId) -> ReaderEr
                 return *re;
             }
         }
-        return ReaderError::Io { op: "reading", path: object_path(root, id), source: io::Error::other("corrupt") };
+        return ReaderError::Io {
+            op: "reading",
+            path: object_path(root, id),
+            source: io::Error::other("corrupt"),
+        };
     }
-    ReaderError::Io { op: "reading", path: object_path(root, id), source: e }
+    ReaderError::Io {
+        op: "reading",
+        path: object_path(root, id),
+        source: e,
+    }
 }

@@ -80,17 +80,21 @@ pub fn verify(db: &Database) -> Result<VerifyReport> {
                 continue;
             }
             let site = Site::new(entry, &role);
-            let result = VerifyingReader::open(db.root(), &f.object, Some(f.size), site).and_then(|mut r| {
-                let mut buf = vec![0u8; 1 << 20];
-                let mut n_total = 0u64;
-                loop {
-                    let n = r.read(&mut buf).map_err(|e| unwrap_verify_error(e, db.root(), &f.object))?;
-                    if n == 0 {
-                        break Ok(n_total);
+            let result = VerifyingReader::open(db.root(), &f.object, Some(f.size), site).and_then(
+                |mut r| {
+                    let mut buf = vec![0u8; 1 << 20];
+                    let mut n_total = 0u64;
+                    loop {
+                        let n = r
+                            .read(&mut buf)
+                            .map_err(|e| unwrap_verify_error(e, db.root(), &f.object))?;
+                        if n == 0 {
+                            break Ok(n_total);
+                        }
+                        n_total += n as u64;
                     }
-                    n_total += n as u64;
-                }
-            });
+                },
+            );
             report.objects_checked += 1;
             match result {
                 Ok(n) => {

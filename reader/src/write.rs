@@ -73,7 +73,8 @@ impl Writer {
             .write(true)
             .open(&lock_path)
             .map_err(ReaderError::io("opening", &lock_path))?;
-        lock.lock().map_err(ReaderError::io("locking", &lock_path))?;
+        lock.lock()
+            .map_err(ReaderError::io("locking", &lock_path))?;
         let marker = root.join(MARKER);
         if !marker.exists() {
             let body = format!("{{\"schema\":\"{SCHEMA}\"}}\n");
@@ -99,7 +100,11 @@ impl Writer {
             write_atomic(self.db.root(), &path, bytes)?;
             failpoint("object-renamed");
         }
-        Ok(FileRef { object: id, size: bytes.len() as u64, media_type: media_type.to_string() })
+        Ok(FileRef {
+            object: id,
+            size: bytes.len() as u64,
+            media_type: media_type.to_string(),
+        })
     }
 
     /// Stores a value as canonical JSON.
@@ -112,7 +117,9 @@ impl Writer {
     /// the manifest object, creates the immutable `releases/<name>@<version>` ref and, when
     /// `update_latest`, moves `latest`. Returns the release id.
     pub fn commit(&self, mut release: Release, update_latest: bool) -> Result<ObjectId> {
-        release.normalise().map_err(ReaderError::format(format!("release {}", release.label())))?;
+        release
+            .normalise()
+            .map_err(ReaderError::format(format!("release {}", release.label())))?;
         for (entry, role, f) in release.file_refs() {
             if !object_path(self.db.root(), &f.object).is_file() {
                 return Err(ReaderError::DanglingReference {
@@ -124,7 +131,9 @@ impl Writer {
         }
         failpoint("objects-stored");
         let label = release.label();
-        let bytes = release.to_canonical_bytes().map_err(ReaderError::format(format!("release {label}")))?;
+        let bytes = release
+            .to_canonical_bytes()
+            .map_err(ReaderError::format(format!("release {label}")))?;
         let manifest = self.put(&bytes, MANIFEST_MEDIA_TYPE)?;
         let id = manifest.object;
         failpoint("manifest-stored");
@@ -233,7 +242,11 @@ pub fn list_objects(objects: &Path) -> Result<Vec<(PathBuf, Option<ObjectId>)>> 
     let mut dirs: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
     dirs.sort();
     for d in dirs {
-        let prefix = d.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
+        let prefix = d
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default()
+            .to_string();
         let rd = fs::read_dir(&d).map_err(ReaderError::io("listing", &d))?;
         let mut files: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
         files.sort();
@@ -251,14 +264,20 @@ pub fn write_atomic(root: &Path, dest: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(root, dest, bytes, || {})
 }
 
-fn write_atomic_with(root: &Path, dest: &Path, bytes: &[u8], before_rename: impl FnOnce()) -> Result<()> {
+fn write_atomic_with(
+    root: &Path,
+    dest: &Path,
+    bytes: &[u8],
+    before_rename: impl FnOnce(),
+) -> Result<()> {
     let tmp_dir = root.join("tmp");
     fs::create_dir_all(&tmp_dir).map_err(ReaderError::io("creating", &tmp_dir))?;
     let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
     let tmp = tmp_dir.join(format!("{}-{n}.tmp", std::process::id()));
     {
         let mut f = File::create(&tmp).map_err(ReaderError::io("creating", &tmp))?;
-        f.write_all(bytes).map_err(ReaderError::io("writing", &tmp))?;
+        f.write_all(bytes)
+            .map_err(ReaderError::io("writing", &tmp))?;
         f.sync_all().map_err(ReaderError::io("syncing", &tmp))?;
     }
     before_rename();

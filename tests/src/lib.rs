@@ -7,5 +7,7 @@ pub mod sample;
 /// The workspace root (for finding `format-spec/`, `../shared/` and the binaries).
 pub fn workspace_root() -> std::path::PathBuf {
     let here = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    here.parent().map(std::path::Path::to_path_buf).unwrap_or_else(|| here.to_path_buf())
+    here.parent()
+        .map(std::path::Path::to_path_buf)
+        .unwrap_or_else(|| here.to_path_buf())
 }

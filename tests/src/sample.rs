@@ -7,7 +7,9 @@ use std::collections::BTreeMap;
 use regolith_compiler::encode::{glb, heightfield, mcap, png, EncodeError};
 use regolith_format::camera_model::{CameraModel, Distortion};
 use regolith_format::frames::{quat_from_axis_angle, Pose};
-use regolith_format::kinds::{self, media, roles, CameraMeta, LodMeta, MeshMeta, RigMeta, TextureMeta};
+use regolith_format::kinds::{
+    self, media, roles, CameraMeta, LodMeta, MeshMeta, RigMeta, TextureMeta,
+};
 use regolith_format::manifest::{new_release, CampaignRef, InputFile, PlanStep, Producer};
 use regolith_format::{Entry, FileRef, ObjectId, Release, Tile};
 use regolith_reader::{ReaderError, Writer};
@@ -52,17 +54,31 @@ pub fn heights() -> Vec<f32> {
 /// The sample left camera.
 pub fn camera_left() -> CameraModel {
     CameraModel {
-        distortion: Distortion { k1: -0.21, k2: 0.09, p1: 4e-4, p2: -2e-4, k3: 0.0 },
+        distortion: Distortion {
+            k1: -0.21,
+            k2: 0.09,
+            p1: 4e-4,
+            p2: -2e-4,
+            k3: 0.0,
+        },
         ..CameraModel::pinhole(16, 12, 13.0, 13.0, 7.5, 5.5)
     }
 }
 
 fn tile(files: BTreeMap<String, FileRef>, bounds_m: [f64; 4]) -> Vec<Tile> {
-    vec![Tile { level: 0, x: 0, y: 0, bounds_m, files }]
+    vec![Tile {
+        level: 0,
+        x: 0,
+        y: 0,
+        bounds_m,
+        files,
+    }]
 }
 
 fn tiny_image(seed: u8) -> Result<Vec<u8>, EncodeError> {
-    let px: Vec<u8> = (0..16u32 * 12).map(|i| ((i * 37 + u32::from(seed) * 11) % 256) as u8).collect();
+    let px: Vec<u8> = (0..16u32 * 12)
+        .map(|i| ((i * 37 + u32::from(seed) * 11) % 256) as u8)
+        .collect();
     png::grey8(16, 12, &px)
 }
 
@@ -72,7 +88,10 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
     let mut rel: Release = new_release(
         "sample",
         version,
-        Producer { name: "regolith-tests".into(), version: "1".into() },
+        Producer {
+            name: "regolith-tests".into(),
+            version: "1".into(),
+        },
     );
     let z = heights();
     let hf = heightfield::encode(&heightfield::GridInput {
@@ -86,9 +105,18 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
     })?;
     let bounds = hf.meta.bounds();
     let files: BTreeMap<String, FileRef> = [
-        (roles::HEIGHT.to_string(), writer.put(&hf.height_png, media::PNG)?),
-        (roles::HEIGHT_F32.to_string(), writer.put(&hf.height_exr, media::EXR)?),
-        (roles::MASK.to_string(), writer.put(&hf.mask_png, media::PNG)?),
+        (
+            roles::HEIGHT.to_string(),
+            writer.put(&hf.height_png, media::PNG)?,
+        ),
+        (
+            roles::HEIGHT_F32.to_string(),
+            writer.put(&hf.height_exr, media::EXR)?,
+        ),
+        (
+            roles::MASK.to_string(),
+            writer.put(&hf.mask_png, media::PNG)?,
+        ),
     ]
     .into();
     rel.entries.push(Entry {
@@ -98,7 +126,9 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
         files: BTreeMap::new(),
         tiles: tile(files, bounds),
     });
-    let tex: Vec<[u8; 3]> = (0..W * H).map(|i| [(i % 251) as u8, (i * 3 % 251) as u8, 128]).collect();
+    let tex: Vec<[u8; 3]> = (0..W * H)
+        .map(|i| [(i % 251) as u8, (i * 3 % 251) as u8, 128])
+        .collect();
     let tex_png = png::rgb8(W, H, &tex)?;
     rel.entries.push(Entry {
         name: "laser/0.05/texture".into(),
@@ -110,14 +140,24 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
             bit_depth: 8,
         })?,
         files: BTreeMap::new(),
-        tiles: tile([(roles::IMAGE.to_string(), writer.put(&tex_png, media::PNG)?)].into(), bounds),
+        tiles: tile(
+            [(roles::IMAGE.to_string(), writer.put(&tex_png, media::PNG)?)].into(),
+            bounds,
+        ),
     });
     let filled = heightfield::fill_holes(&z, W as usize, H as usize);
     let mut lods = Vec::new();
     let mut lod_files = BTreeMap::new();
     let mut origin = [0.0; 3];
     for (n, step) in [1usize, 2].into_iter().enumerate() {
-        let (mut m, err) = glb::grid_mesh(&filled, W as usize, H as usize, hf.meta.origin_m, CELL_M, step);
+        let (mut m, err) = glb::grid_mesh(
+            &filled,
+            W as usize,
+            H as usize,
+            hf.meta.origin_m,
+            CELL_M,
+            step,
+        );
         m.texture_png = Some(tex_png.clone());
         origin = m.local_origin_m;
         lods.push(LodMeta {
@@ -125,7 +165,10 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
             triangles: (m.indices.len() / 3) as u64,
             max_height_error_m: err,
         });
-        lod_files.insert(roles::lod(n as u32), writer.put(&glb::encode(&m)?, media::GLB)?);
+        lod_files.insert(
+            roles::lod(n as u32),
+            writer.put(&glb::encode(&m)?, media::GLB)?,
+        );
     }
     rel.entries.push(Entry {
         name: "laser/0.05/mesh".into(),
@@ -140,8 +183,14 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
         tiles: tile(lod_files, bounds),
     });
     let left = camera_left();
-    let right = CameraModel { cx: 7.6, ..left.clone() };
-    for (name, cam) in [("cameras/navcam_left", &left), ("cameras/navcam_right", &right)] {
+    let right = CameraModel {
+        cx: 7.6,
+        ..left.clone()
+    };
+    for (name, cam) in [
+        ("cameras/navcam_left", &left),
+        ("cameras/navcam_right", &right),
+    ] {
         rel.entries.push(Entry {
             name: name.into(),
             kind: kinds::CAMERA.into(),
@@ -153,7 +202,10 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
     let rig = RigMeta {
         left: "cameras/navcam_left".into(),
         right: "cameras/navcam_right".into(),
-        right_from_left: Pose { translation_m: [-0.1, 0.0, 0.0], rotation_xyzw: [0.0, 0.0, 0.0, 1.0] },
+        right_from_left: Pose {
+            translation_m: [-0.1, 0.0, 0.0],
+            rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        },
         rig_from_left: Pose::IDENTITY,
     };
     rel.entries.push(Entry {
@@ -168,8 +220,15 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
         rotation_xyzw: quat_from_axis_angle([1.0, 0.0, 0.0], -2.0),
     };
     let gfr = gfl.compose(&rig.right_from_left.inverse());
-    let cams = [("navcam_left", &left, gfl, 1u8), ("navcam_right", &right, gfr, 5u8)];
-    let mut capture = mcap::CaptureFrames { name: "loc01".into(), cameras: Vec::new(), pose_spread: (0.0002, 0.01) };
+    let cams = [
+        ("navcam_left", &left, gfl, 1u8),
+        ("navcam_right", &right, gfr, 5u8),
+    ];
+    let mut capture = mcap::CaptureFrames {
+        name: "loc01".into(),
+        cameras: Vec::new(),
+        pose_spread: (0.0002, 0.01),
+    };
     for (name, model, pose, seed) in cams {
         capture.cameras.push(mcap::CameraFrames {
             camera: name.into(),
@@ -185,7 +244,10 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
         kind: kinds::CAPTURES.into(),
         meta: json!({"captures": 1}),
         files: [
-            (roles::MCAP.to_string(), writer.put(&mcap_bytes, media::MCAP)?),
+            (
+                roles::MCAP.to_string(),
+                writer.put(&mcap_bytes, media::MCAP)?,
+            ),
             (roles::INDEX.to_string(), writer.put_json(&index)?),
         ]
         .into(),
@@ -201,8 +263,16 @@ pub fn build(writer: &Writer, version: &str) -> Result<ObjectId, SampleError> {
     });
     rel.campaign = CampaignRef {
         name: "sample".into(),
-        inputs: vec![InputFile { path: "campaign.toml".into(), sha256: ObjectId::of_bytes(b"sample"), size: 6 }],
+        inputs: vec![InputFile {
+            path: "campaign.toml".into(),
+            sha256: ObjectId::of_bytes(b"sample"),
+            size: 6,
+        }],
     };
-    rel.plan = vec![PlanStep { stage: "sample.build".into(), version: 1, params: json!({"cell_m": CELL_M}) }];
+    rel.plan = vec![PlanStep {
+        stage: "sample.build".into(),
+        version: 1,
+        params: json!({"cell_m": CELL_M}),
+    }];
     Ok(writer.commit(rel, true)?)
 }

@@ -11,9 +11,18 @@ fn crate_layering_is_respected() {
         .current_dir(regolith_tests::workspace_root())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let meta: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let members: BTreeSet<String> = meta["workspace_members"].as_array().unwrap().iter().map(|m| m.as_str().unwrap().to_string()).collect();
+    let members: BTreeSet<String> = meta["workspace_members"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m.as_str().unwrap().to_string())
+        .collect();
     let mut deps: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     for p in meta["packages"].as_array().unwrap() {
         if !members.contains(p["id"].as_str().unwrap()) {
@@ -29,25 +38,66 @@ fn crate_layering_is_respected() {
             .collect();
         deps.insert(name, d);
     }
-    assert!(deps.len() >= 7, "expected every workspace crate, found {:?}", deps.keys());
+    assert!(
+        deps.len() >= 7,
+        "expected every workspace crate, found {:?}",
+        deps.keys()
+    );
     let allowed: BTreeMap<&str, &[&str]> = [
         ("regolith-format", &[][..]),
         ("regolith-reader", &["regolith-format"][..]),
-        ("regolith-compiler", &["regolith-format", "regolith-reader"][..]),
-        ("regolith-validator", &["regolith-format", "regolith-reader"][..]),
-        ("regolith-corpus", &["regolith-format", "regolith-validator"][..]),
-        ("regolith-cli", &["regolith-format", "regolith-reader", "regolith-compiler", "regolith-validator", "regolith-corpus"][..]),
-        ("regolith-tests", &["regolith-format", "regolith-reader", "regolith-compiler", "regolith-validator", "regolith-corpus"][..]),
+        (
+            "regolith-compiler",
+            &["regolith-format", "regolith-reader"][..],
+        ),
+        (
+            "regolith-validator",
+            &["regolith-format", "regolith-reader"][..],
+        ),
+        (
+            "regolith-corpus",
+            &["regolith-format", "regolith-validator"][..],
+        ),
+        (
+            "regolith-cli",
+            &[
+                "regolith-format",
+                "regolith-reader",
+                "regolith-compiler",
+                "regolith-validator",
+                "regolith-corpus",
+            ][..],
+        ),
+        (
+            "regolith-tests",
+            &[
+                "regolith-format",
+                "regolith-reader",
+                "regolith-compiler",
+                "regolith-validator",
+                "regolith-corpus",
+            ][..],
+        ),
     ]
     .into();
     for (krate, d) in &deps {
-        let ok = allowed.get(krate.as_str()).unwrap_or_else(|| panic!("unknown crate {krate}"));
+        let ok = allowed
+            .get(krate.as_str())
+            .unwrap_or_else(|| panic!("unknown crate {krate}"));
         for dep in d.iter().filter(|d| d.starts_with("regolith-")) {
-            assert!(ok.contains(&dep.as_str()), "forbidden edge {krate} -> {dep}");
+            assert!(
+                ok.contains(&dep.as_str()),
+                "forbidden edge {krate} -> {dep}"
+            );
         }
     }
-    let forbidden_in_reader = ["image", "spade", "kiddo", "rayon", "exr", "gltf", "nalgebra", "e57", "las"];
+    let forbidden_in_reader = [
+        "image", "spade", "kiddo", "rayon", "exr", "gltf", "nalgebra", "e57", "las",
+    ];
     for dep in &deps["regolith-reader"] {
-        assert!(!forbidden_in_reader.contains(&dep.as_str()), "the reader must stay small: it depends on {dep}");
+        assert!(
+            !forbidden_in_reader.contains(&dep.as_str()),
+            "the reader must stay small: it depends on {dep}"
+        );
     }
 }

@@ -23,8 +23,17 @@ fn round_trip_every_kind() {
     assert_eq!(r.id, id);
     assert_eq!(db.resolve("latest").unwrap(), id);
     assert_eq!(db.resolve(&id.to_hex()[..8]).unwrap(), id);
-    let kinds_seen: std::collections::BTreeSet<&str> = r.entries().iter().map(|e| e.kind.as_str()).collect();
-    for k in [kinds::HEIGHTFIELD, kinds::TEXTURE, kinds::MESH, kinds::CAMERA, kinds::RIG, kinds::CAPTURES, kinds::REPORT] {
+    let kinds_seen: std::collections::BTreeSet<&str> =
+        r.entries().iter().map(|e| e.kind.as_str()).collect();
+    for k in [
+        kinds::HEIGHTFIELD,
+        kinds::TEXTURE,
+        kinds::MESH,
+        kinds::CAMERA,
+        kinds::RIG,
+        kinds::CAPTURES,
+        kinds::REPORT,
+    ] {
         assert!(kinds_seen.contains(k), "missing kind {k}");
     }
 
@@ -37,10 +46,16 @@ fn round_trip_every_kind() {
             assert_eq!(hf.valid[i], 0);
         } else {
             assert_eq!(hf.valid[i], 255);
-            assert!((f64::from(want) - f64::from(got)).abs() <= hf.meta.quantisation_error_m * 1.0001 + 1e-7);
+            assert!(
+                (f64::from(want) - f64::from(got)).abs()
+                    <= hf.meta.quantisation_error_m * 1.0001 + 1e-7
+            );
         }
     }
-    let (w, h, exr) = regolith_compiler::encode::exr::read_grey_f32(&r.read_file("laser/0.05", roles::HEIGHT_F32).unwrap()).unwrap();
+    let (w, h, exr) = regolith_compiler::encode::exr::read_grey_f32(
+        &r.read_file("laser/0.05", roles::HEIGHT_F32).unwrap(),
+    )
+    .unwrap();
     assert_eq!((w as u32, h as u32), (sample::W, sample::H));
     for (a, b) in z.iter().zip(&exr) {
         assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
@@ -56,7 +71,10 @@ fn round_trip_every_kind() {
     assert!(lods[1].summary.triangles < lods[0].summary.triangles);
 
     // Cameras and rig read back equal.
-    assert_eq!(r.camera("cameras/navcam_left").unwrap(), sample::camera_left());
+    assert_eq!(
+        r.camera("cameras/navcam_left").unwrap(),
+        sample::camera_left()
+    );
     let rig = r.rig("rig").unwrap();
     assert_eq!(rig.left, "cameras/navcam_left");
 
@@ -65,14 +83,26 @@ fn round_trip_every_kind() {
     let imgs = caps.images().unwrap();
     assert_eq!(imgs.len(), 8);
     assert_eq!(imgs.iter().filter(|i| i.kind == ImageKind::Raw).count(), 4);
-    let left0 = imgs.iter().find(|i| i.camera == "navcam_left" && i.frame == 1 && i.kind == ImageKind::Raw).unwrap();
+    let left0 = imgs
+        .iter()
+        .find(|i| i.camera == "navcam_left" && i.frame == 1 && i.kind == ImageKind::Raw)
+        .unwrap();
     assert_eq!(&left0.data[1..4], b"PNG");
     assert_eq!(left0.ground_from_camera.translation_m, [0.4, -0.5, 0.9]);
     assert_eq!(&caps.mcap_bytes()[..8], b"\x89MCAP0\r\n");
 
-    assert_eq!(r.report("reports/dem").unwrap()["valid_cells"], sample::W * sample::H - 1);
-    assert!(matches!(r.camera("rig"), Err(ReaderError::WrongKind { .. })));
-    assert!(matches!(r.entry("nope"), Err(ReaderError::NoSuchEntry { .. })));
+    assert_eq!(
+        r.report("reports/dem").unwrap()["valid_cells"],
+        sample::W * sample::H - 1
+    );
+    assert!(matches!(
+        r.camera("rig"),
+        Err(ReaderError::WrongKind { .. })
+    ));
+    assert!(matches!(
+        r.entry("nope"),
+        Err(ReaderError::NoSuchEntry { .. })
+    ));
     assert!(verify(&db).unwrap().ok());
 }
 
@@ -82,8 +112,12 @@ fn every_single_bit_flip_in_any_object_is_detected() {
     build(dir.path(), "1.0.0");
     let db = Database::open(dir.path()).unwrap();
     let r = db.release("latest").unwrap();
-    let mut objects: Vec<(String, String, regolith_format::FileRef)> =
-        r.manifest.file_refs().into_iter().map(|(e, role, f)| (e.to_string(), role, f.clone())).collect();
+    let mut objects: Vec<(String, String, regolith_format::FileRef)> = r
+        .manifest
+        .file_refs()
+        .into_iter()
+        .map(|(e, role, f)| (e.to_string(), role, f.clone()))
+        .collect();
     objects.sort_by_key(|o| o.2.object);
     objects.dedup_by_key(|o| o.2.object);
     assert!(objects.len() >= 10);
@@ -105,7 +139,9 @@ fn every_single_bit_flip_in_any_object_is_detected() {
         assert!(p.len() == 1 && p[0].message.contains("expected"), "{p:?}");
         fs::remove_file(&path).unwrap();
         assert_eq!(verify(&db).unwrap().problems[0].message, "missing");
-        let err = r.read_file(entry, role.rsplit('/').next().unwrap()).unwrap_err();
+        let err = r
+            .read_file(entry, role.rsplit('/').next().unwrap())
+            .unwrap_err();
         assert!(err.to_string().contains(&f.object.to_hex()), "{err}");
         fs::write(&path, &original).unwrap();
     }
@@ -140,11 +176,23 @@ fn releases_are_immutable_and_refs_move_atomically() {
     let w = Writer::create_or_open(dir.path()).unwrap();
     let mut m = db.release_by_id(&a).unwrap().manifest;
     m.entries.retain(|e| e.kind != kinds::REPORT);
-    assert!(matches!(w.commit(m, false), Err(ReaderError::ReleaseExists { .. })));
+    assert!(matches!(
+        w.commit(m, false),
+        Err(ReaderError::ReleaseExists { .. })
+    ));
     // The ref log records every move, with time outside the hashed objects.
     let log = fs::read_to_string(dir.path().join("logs/refs.jsonl")).unwrap();
-    assert!(log.lines().filter(|l| l.contains("\"ref\":\"latest\"")).count() >= 2);
-    assert!(!fs::read_dir(dir.path().join("refs")).unwrap().any(|e| e.unwrap().file_name().to_string_lossy().starts_with('.')));
+    assert!(
+        log.lines()
+            .filter(|l| l.contains("\"ref\":\"latest\""))
+            .count()
+            >= 2
+    );
+    assert!(!fs::read_dir(dir.path().join("refs")).unwrap().any(|e| e
+        .unwrap()
+        .file_name()
+        .to_string_lossy()
+        .starts_with('.')));
 }
 
 #[test]
@@ -168,7 +216,9 @@ fn gc_removes_only_unreachable_objects() {
     let dir = tempfile::tempdir().unwrap();
     build(dir.path(), "1.0.0");
     let w = Writer::create_or_open(dir.path()).unwrap();
-    let stray = w.put(b"nobody references me", "application/octet-stream").unwrap();
+    let stray = w
+        .put(b"nobody references me", "application/octet-stream")
+        .unwrap();
     let report = w.gc().unwrap();
     assert_eq!(report.removed, 1);
     assert!(!dir.path().join(stray.object.object_path()).exists());

@@ -17,7 +17,11 @@ fn db_files(root: &Path) -> BTreeMap<String, Vec<u8>> {
     while let Some(d) = stack.pop() {
         for e in fs::read_dir(&d).unwrap() {
             let p = e.unwrap().path();
-            let rel = p.strip_prefix(root).unwrap().to_string_lossy().replace('\\', "/");
+            let rel = p
+                .strip_prefix(root)
+                .unwrap()
+                .to_string_lossy()
+                .replace('\\', "/");
             if rel == "lock" || rel.starts_with("tmp") || rel.starts_with("logs") {
                 continue;
             }
@@ -36,9 +40,17 @@ fn expected_json(db: &Path) -> serde_json::Value {
     let r = d.release("latest").unwrap();
     let mut entries = serde_json::Map::new();
     for e in r.entries() {
-        let files: BTreeMap<String, String> =
-            r.manifest.file_refs().into_iter().filter(|(n, _, _)| *n == e.name).map(|(_, role, f)| (role, f.object.to_hex())).collect();
-        entries.insert(e.name.clone(), json!({"kind": e.kind, "entry_hash": e.hash().unwrap().to_hex(), "files": files}));
+        let files: BTreeMap<String, String> = r
+            .manifest
+            .file_refs()
+            .into_iter()
+            .filter(|(n, _, _)| *n == e.name)
+            .map(|(_, role, f)| (role, f.object.to_hex()))
+            .collect();
+        entries.insert(
+            e.name.clone(),
+            json!({"kind": e.kind, "entry_hash": e.hash().unwrap().to_hex(), "files": files}),
+        );
     }
     let hf = r.heightfield("laser/0.05").unwrap();
     json!({
@@ -78,8 +90,14 @@ fn test_vectors_are_up_to_date() {
     }
     let committed = db_files(&dir.join("db"));
     let actual_dir = workspace_root().join("target/golden-actual/test-vectors");
-    let outdated: Vec<&String> = fresh.keys().filter(|k| committed.get(*k) != fresh.get(*k)).collect();
-    let unexpected: Vec<&String> = committed.keys().filter(|k| !fresh.contains_key(*k)).collect();
+    let outdated: Vec<&String> = fresh
+        .keys()
+        .filter(|k| committed.get(*k) != fresh.get(*k))
+        .collect();
+    let unexpected: Vec<&String> = committed
+        .keys()
+        .filter(|k| !fresh.contains_key(*k))
+        .collect();
     let expected_committed = fs::read_to_string(dir.join("expected.json")).unwrap_or_default();
     if !outdated.is_empty() || !unexpected.is_empty() || expected_committed != expected {
         let _ = fs::remove_dir_all(&actual_dir);

@@ -29,19 +29,34 @@ fn extension(media_type: &str) -> &'static str {
 fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> anyhow::Result<()> {
     let path = dir.join(name);
     let mut f = fs::File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-    f.write_all(bytes).with_context(|| format!("writing {}", path.display()))?;
+    f.write_all(bytes)
+        .with_context(|| format!("writing {}", path.display()))?;
     f.sync_all()?;
     Ok(())
 }
 
-pub fn run(db: &Path, release: &str, entry: &str, to: &Path, profile: Option<Profile>, json_out: bool) -> anyhow::Result<Outcome> {
+pub fn run(
+    db: &Path,
+    release: &str,
+    entry: &str,
+    to: &Path,
+    profile: Option<Profile>,
+    json_out: bool,
+) -> anyhow::Result<Outcome> {
     let database = Database::open(db)?;
     let view = database.release(release)?;
     let e = view.entry(entry)?.clone();
-    if to.exists() && fs::read_dir(to).map(|mut d| d.next().is_some()).unwrap_or(true) {
+    if to.exists()
+        && fs::read_dir(to)
+            .map(|mut d| d.next().is_some())
+            .unwrap_or(true)
+    {
         bail!("output folder {} exists and is not empty", to.display());
     }
-    let parent = to.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let parent = to
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     fs::create_dir_all(parent)?;
     let tmp: PathBuf = parent.join(format!(
         ".{}.tmp-{}",
@@ -64,7 +79,12 @@ pub fn run(db: &Path, release: &str, entry: &str, to: &Path, profile: Option<Pro
     if json_out {
         print_json(&json!({"release": view.label(), "entry": entry, "to": to, "files": written}))?;
     } else {
-        println!("exported {entry} of {} to {}: {}", view.label(), to.display(), written.join(", "));
+        println!(
+            "exported {entry} of {} to {}: {}",
+            view.label(),
+            to.display(),
+            written.join(", ")
+        );
     }
     Ok(Outcome::Ok)
 }
@@ -80,7 +100,11 @@ fn write_all(
         "entry_hash": e.hash()?.to_hex()});
     if e.kind == kinds::HEIGHTFIELD {
         let hf = view.heightfield(&e.name)?;
-        for (role, name) in [(roles::HEIGHT, "height.png"), (roles::HEIGHT_F32, "height.exr"), (roles::MASK, "mask.png")] {
+        for (role, name) in [
+            (roles::HEIGHT, "height.png"),
+            (roles::HEIGHT_F32, "height.exr"),
+            (roles::MASK, "mask.png"),
+        ] {
             write_file(dir, name, &view.read_file(&e.name, role)?)?;
             written.push(name.to_string());
         }
@@ -93,7 +117,11 @@ fn write_all(
             "mask": "mask.png: 255 measured, 0 filled/nodata", "holes_filled": m.holes_filled,
             "site_origin_m": m.site_origin_m, "provenance": provenance,
         });
-        write_file(dir, "height.json", serde_json::to_string_pretty(&sidecar)?.as_bytes())?;
+        write_file(
+            dir,
+            "height.json",
+            serde_json::to_string_pretty(&sidecar)?.as_bytes(),
+        )?;
         written.push("height.json".into());
         if let Some(p) = profile {
             let (v, stem) = match p {
@@ -101,16 +129,25 @@ fn write_all(
                 Profile::Unreal => (regolith_compiler::export::unreal(&hf)?, "height_unreal"),
             };
             write_file(dir, &format!("{stem}.png"), &v.png)?;
-            write_file(dir, &format!("{stem}.json"), serde_json::to_string_pretty(&v.sidecar)?.as_bytes())?;
+            write_file(
+                dir,
+                &format!("{stem}.json"),
+                serde_json::to_string_pretty(&v.sidecar)?.as_bytes(),
+            )?;
             written.push(format!("{stem}.png"));
             written.push(format!("{stem}.json"));
         }
         return Ok(written);
     }
     if profile.is_some() {
-        bail!("--profile applies to heightfield entries; {:?} is a {}", e.name, e.kind);
+        bail!(
+            "--profile applies to heightfield entries; {:?} is a {}",
+            e.name,
+            e.kind
+        );
     }
-    let mut files: Vec<(String, &regolith_format::FileRef)> = e.files.iter().map(|(r, f)| (r.clone(), f)).collect();
+    let mut files: Vec<(String, &regolith_format::FileRef)> =
+        e.files.iter().map(|(r, f)| (r.clone(), f)).collect();
     if let Some(t) = e.root_tile() {
         files.extend(t.files.iter().map(|(r, f)| (r.clone(), f)));
     }
@@ -120,7 +157,11 @@ fn write_all(
         written.push(name);
     }
     let meta = json!({"kind": e.kind, "meta": e.meta, "provenance": provenance});
-    write_file(dir, "entry.json", serde_json::to_string_pretty(&meta)?.as_bytes())?;
+    write_file(
+        dir,
+        "entry.json",
+        serde_json::to_string_pretty(&meta)?.as_bytes(),
+    )?;
     written.push("entry.json".into());
     Ok(written)
 }

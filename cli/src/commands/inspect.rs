@@ -10,7 +10,12 @@ use serde_json::{json, Value};
 use super::{human_bytes, print_json};
 use crate::Outcome;
 
-pub fn run(db: &Path, release: Option<&str>, entry: Option<&str>, json_out: bool) -> anyhow::Result<Outcome> {
+pub fn run(
+    db: &Path,
+    release: Option<&str>,
+    entry: Option<&str>,
+    json_out: bool,
+) -> anyhow::Result<Outcome> {
     let database = Database::open(db)?;
     match (release, entry) {
         (None, _) => database_summary(&database, json_out)?,
@@ -25,12 +30,20 @@ fn database_summary(db: &Database, json_out: bool) -> anyhow::Result<()> {
     let mut releases = Vec::new();
     for (label, id) in db.releases()? {
         let view = db.release_by_id(&id)?;
-        let size: u64 = view.manifest.file_refs().iter().map(|(_, _, f)| f.size).sum();
+        let size: u64 = view
+            .manifest
+            .file_refs()
+            .iter()
+            .map(|(_, _, f)| f.size)
+            .sum();
         releases.push(json!({"release": label, "id": id.to_hex(), "entries": view.entries().len(), "bytes": size,
             "parent": view.manifest.parent.map(|p| p.to_hex())}));
     }
     if json_out {
-        let refs: serde_json::Map<String, Value> = refs.iter().map(|(k, v)| (k.clone(), json!(v.to_hex()))).collect();
+        let refs: serde_json::Map<String, Value> = refs
+            .iter()
+            .map(|(k, v)| (k.clone(), json!(v.to_hex())))
+            .collect();
         return print_json(&json!({"releases": releases, "refs": refs}));
     }
     println!("{} release(s) in {}", releases.len(), db.root().display());
@@ -38,7 +51,11 @@ fn database_summary(db: &Database, json_out: bool) -> anyhow::Result<()> {
         println!(
             "  {:<32} {}  {:>3} entries  {}",
             r["release"].as_str().unwrap_or_default(),
-            &r["id"].as_str().unwrap_or_default().get(..12).unwrap_or_default(),
+            &r["id"]
+                .as_str()
+                .unwrap_or_default()
+                .get(..12)
+                .unwrap_or_default(),
             r["entries"],
             human_bytes(r["bytes"].as_u64().unwrap_or(0))
         );
@@ -50,7 +67,11 @@ fn database_summary(db: &Database, json_out: bool) -> anyhow::Result<()> {
 }
 
 fn entry_size(e: &Entry) -> u64 {
-    e.files.values().chain(e.tiles.iter().flat_map(|t| t.files.values())).map(|f| f.size).sum()
+    e.files
+        .values()
+        .chain(e.tiles.iter().flat_map(|t| t.files.values()))
+        .map(|f| f.size)
+        .sum()
 }
 
 /// One line describing an entry's content from its metadata.
@@ -61,8 +82,15 @@ fn describe(e: &Entry) -> String {
             "{}x{} cells of {} m, z {:?} m, {} valid",
             m["width"], m["height"], m["cell_m"], m["z_range_m"], m["valid_cells"]
         ),
-        kinds::MESH => format!("{} LOD(s), lod0 {} triangles", m["lods"].as_array().map_or(0, Vec::len), m["lods"][0]["triangles"]),
-        kinds::CAMERA => format!("{}x{} fx {} fy {}", m["model"]["width"], m["model"]["height"], m["model"]["fx"], m["model"]["fy"]),
+        kinds::MESH => format!(
+            "{} LOD(s), lod0 {} triangles",
+            m["lods"].as_array().map_or(0, Vec::len),
+            m["lods"][0]["triangles"]
+        ),
+        kinds::CAMERA => format!(
+            "{}x{} fx {} fy {}",
+            m["model"]["width"], m["model"]["height"], m["model"]["fx"], m["model"]["fy"]
+        ),
         kinds::REPORT => format!("report {}", m["report"].as_str().unwrap_or("?")),
         _ => String::new(),
     }
@@ -78,13 +106,23 @@ fn release_summary(view: &ReleaseView, json_out: bool) -> anyhow::Result<()> {
         println!("parent  {p}");
     }
     println!("producer {} {}", m.producer.name, m.producer.version);
-    println!("campaign {} ({} input files)", m.campaign.name, m.campaign.inputs.len());
+    println!(
+        "campaign {} ({} input files)",
+        m.campaign.name,
+        m.campaign.inputs.len()
+    );
     if m.allow_uncertified == Some(true) {
         println!("published WITHOUT passing certificates (--allow-uncertified)");
     }
     println!("{} entries:", m.entries.len());
     for e in &m.entries {
-        println!("  {:<28} {:<12} {:>10}  {}", e.name, e.kind, human_bytes(entry_size(e)), describe(e));
+        println!(
+            "  {:<28} {:<12} {:>10}  {}",
+            e.name,
+            e.kind,
+            human_bytes(entry_size(e)),
+            describe(e)
+        );
     }
     Ok(())
 }
@@ -92,25 +130,41 @@ fn release_summary(view: &ReleaseView, json_out: bool) -> anyhow::Result<()> {
 fn entry_summary(view: &ReleaseView, name: &str, json_out: bool) -> anyhow::Result<()> {
     let e = view.entry(name)?;
     let body = if e.kind == kinds::REPORT || e.kind == kinds::SENSOR_MODEL {
-        let role = if e.kind == kinds::REPORT { kinds::roles::REPORT } else { kinds::roles::MODEL };
+        let role = if e.kind == kinds::REPORT {
+            kinds::roles::REPORT
+        } else {
+            kinds::roles::MODEL
+        };
         Some(view.read_json::<Value>(name, role, "JSON body")?)
     } else {
         None
     };
     if json_out {
-        return print_json(&json!({"release": view.label(), "entry": e, "entry_hash": e.hash()?.to_hex(), "body": body}));
+        return print_json(
+            &json!({"release": view.label(), "entry": e, "entry_hash": e.hash()?.to_hex(), "body": body}),
+        );
     }
     println!("{} in {} ({})", e.name, view.label(), e.kind);
     println!("entry hash {}", e.hash()?);
     println!("{}", describe(e));
     for (role, f) in &e.files {
-        println!("  {role:<16} {}  {:>10}  {}", f.object.short(), human_bytes(f.size), f.media_type);
+        println!(
+            "  {role:<16} {}  {:>10}  {}",
+            f.object.short(),
+            human_bytes(f.size),
+            f.media_type
+        );
     }
     for t in &e.tiles {
         for (role, f) in &t.files {
             println!(
                 "  tile {}/{}/{} {role:<10} {}  {:>10}  {}",
-                t.level, t.x, t.y, f.object.short(), human_bytes(f.size), f.media_type
+                t.level,
+                t.x,
+                t.y,
+                f.object.short(),
+                human_bytes(f.size),
+                f.media_type
             );
         }
     }

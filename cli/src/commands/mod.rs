@@ -12,8 +12,16 @@ use crate::Outcome;
 pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
     match &cli.command {
         Command::Verify { db } => verify::run(db, cli.json),
-        Command::Inspect { db, release, entry } => inspect::run(db, release.as_deref(), entry.as_deref(), cli.json),
-        Command::Export { db, release, entry, to, profile } => export::run(db, release, entry, to, *profile, cli.json),
+        Command::Inspect { db, release, entry } => {
+            inspect::run(db, release.as_deref(), entry.as_deref(), cli.json)
+        }
+        Command::Export {
+            db,
+            release,
+            entry,
+            to,
+            profile,
+        } => export::run(db, release, entry, to, *profile, cli.json),
         Command::Gc { db } => gc::run(db, cli.json),
     }
 }

@@ -10,7 +10,8 @@ use crate::Outcome;
 
 pub fn run(db: &Path, json: bool) -> anyhow::Result<Outcome> {
     let database = Database::open(db)?;
-    let report = regolith_reader::verify(&database).with_context(|| format!("verifying {}", db.display()))?;
+    let report = regolith_reader::verify(&database)
+        .with_context(|| format!("verifying {}", db.display()))?;
     if json {
         print_json(&serde_json::json!({
             "ok": report.ok(),
@@ -21,7 +22,10 @@ pub fn run(db: &Path, json: bool) -> anyhow::Result<Outcome> {
         }))?;
     } else {
         for p in &report.problems {
-            println!("{}  {}  entry {:?} role {:?} (release {})", p.object, p.message, p.entry, p.role, p.release);
+            println!(
+                "{}  {}  entry {:?} role {:?} (release {})",
+                p.object, p.message, p.entry, p.role, p.release
+            );
         }
         println!(
             "{}: {} release(s), {} object(s), {} checked, {} problem(s)",
@@ -32,5 +36,9 @@ pub fn run(db: &Path, json: bool) -> anyhow::Result<Outcome> {
             report.problems.len()
         );
     }
-    Ok(if report.ok() { Outcome::Ok } else { Outcome::CheckFailed })
+    Ok(if report.ok() {
+        Outcome::Ok
+    } else {
+        Outcome::CheckFailed
+    })
 }

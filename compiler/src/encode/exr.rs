@@ -5,9 +5,16 @@ use ::exr::prelude::*;
 use super::EncodeError;
 
 /// Encodes a float grid (row-major, row 0 at the top). NaN is kept as NaN (nodata).
-pub fn grey_f32(width: usize, height: usize, values: &[f32]) -> std::result::Result<Vec<u8>, EncodeError> {
+pub fn grey_f32(
+    width: usize,
+    height: usize,
+    values: &[f32],
+) -> std::result::Result<Vec<u8>, EncodeError> {
     if values.len() != width * height {
-        return Err(EncodeError::new("EXR", format!("{} values for {width}x{height}", values.len())));
+        return Err(EncodeError::new(
+            "EXR",
+            format!("{} values for {width}x{height}", values.len()),
+        ));
     }
     let channel = AnyChannel::new("Y", FlatSamples::F32(values.to_vec()));
     let layer = Layer::new(

@@ -41,7 +41,10 @@ fn pad4(buf: &mut Vec<u8>, fill: u8) {
 pub fn encode(m: &GlbMesh) -> Result<Vec<u8>, EncodeError> {
     let n = m.positions.len();
     if m.normals.len() != n || (!m.uvs.is_empty() && m.uvs.len() != n) || m.indices.len() % 3 != 0 {
-        return Err(EncodeError::new("GLB", "attribute counts differ or indices not a triangle list"));
+        return Err(EncodeError::new(
+            "GLB",
+            "attribute counts differ or indices not a triangle list",
+        ));
     }
     if m.indices.iter().any(|&i| i as usize >= n) {
         return Err(EncodeError::new("GLB", "index out of range"));
@@ -76,26 +79,46 @@ pub fn encode(m: &GlbMesh) -> Result<Vec<u8>, EncodeError> {
         (lo, hi) = ([0.0; 3], [0.0; 3]);
     }
     let v = push_view(&mut bin, &pos, Some(34962));
-    accessors.push(json!({"bufferView": v, "componentType": 5126, "count": n, "type": "VEC3",
-        "min": lo.map(f64::from), "max": hi.map(f64::from)}));
-    let nor: Vec<u8> = m.normals.iter().flat_map(|p| to_gltf(*p).into_iter().flat_map(f32::to_le_bytes)).collect();
+    accessors.push(
+        json!({"bufferView": v, "componentType": 5126, "count": n, "type": "VEC3",
+        "min": lo.map(f64::from), "max": hi.map(f64::from)}),
+    );
+    let nor: Vec<u8> = m
+        .normals
+        .iter()
+        .flat_map(|p| to_gltf(*p).into_iter().flat_map(f32::to_le_bytes))
+        .collect();
     let v = push_view(&mut bin, &nor, Some(34962));
     accessors.push(json!({"bufferView": v, "componentType": 5126, "count": n, "type": "VEC3"}));
     let mut attributes = json!({"POSITION": 0, "NORMAL": 1});
     if !m.uvs.is_empty() {
-        let uv: Vec<u8> = m.uvs.iter().flat_map(|p| p.iter().flat_map(|f| f.to_le_bytes())).collect();
+        let uv: Vec<u8> = m
+            .uvs
+            .iter()
+            .flat_map(|p| p.iter().flat_map(|f| f.to_le_bytes()))
+            .collect();
         let v = push_view(&mut bin, &uv, Some(34962));
         accessors.push(json!({"bufferView": v, "componentType": 5126, "count": n, "type": "VEC2"}));
         attributes["TEXCOORD_0"] = json!(accessors.len() - 1);
     }
     let (idx, ctype): (Vec<u8>, u32) = if n <= 65_535 {
-        (m.indices.iter().flat_map(|&i| (i as u16).to_le_bytes()).collect(), 5123)
+        (
+            m.indices
+                .iter()
+                .flat_map(|&i| (i as u16).to_le_bytes())
+                .collect(),
+            5123,
+        )
     } else {
-        (m.indices.iter().flat_map(|&i| i.to_le_bytes()).collect(), 5125)
+        (
+            m.indices.iter().flat_map(|&i| i.to_le_bytes()).collect(),
+            5125,
+        )
     };
     let v = push_view(&mut bin, &idx, Some(34963));
     accessors.push(json!({"bufferView": v, "componentType": ctype, "count": m.indices.len(), "type": "SCALAR"}));
-    let primitive = json!({"attributes": attributes, "indices": accessors.len() - 1, "mode": 4, "material": 0});
+    let primitive =
+        json!({"attributes": attributes, "indices": accessors.len() - 1, "mode": 4, "material": 0});
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": "regolith"},
         "scene": 0,
@@ -106,7 +129,8 @@ pub fn encode(m: &GlbMesh) -> Result<Vec<u8>, EncodeError> {
     if let (Some(png), false) = (&m.texture_png, m.uvs.is_empty()) {
         let v = push_view(&mut bin, png, None);
         doc["images"] = json!([{"bufferView": v, "mimeType": "image/png"}]);
-        doc["samplers"] = json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}]);
+        doc["samplers"] =
+            json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071}]);
         doc["textures"] = json!([{"source": 0, "sampler": 0}]);
         doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
     }
@@ -144,18 +168,36 @@ pub fn grid_mesh(
     step: usize,
 ) -> (GlbMesh, f64) {
     let step = step.max(1);
-    let cols: Vec<usize> = (0..width).step_by(step).chain((width > 0 && (width - 1) % step != 0).then_some(width - 1)).collect();
-    let rows: Vec<usize> = (0..height).step_by(step).chain((height > 0 && (height - 1) % step != 0).then_some(height - 1)).collect();
+    let cols: Vec<usize> = (0..width)
+        .step_by(step)
+        .chain((width > 0 && (width - 1) % step != 0).then_some(width - 1))
+        .collect();
+    let rows: Vec<usize> = (0..height)
+        .step_by(step)
+        .chain((height > 0 && (height - 1) % step != 0).then_some(height - 1))
+        .collect();
     let z_at = |c: usize, r: usize| heights.get(r * width + c).copied().unwrap_or(f32::NAN);
-    let z0 = heights.iter().copied().filter(|z| z.is_finite()).fold(f32::INFINITY, f32::min);
+    let z0 = heights
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .fold(f32::INFINITY, f32::min);
     let z0 = if z0.is_finite() { f64::from(z0) } else { 0.0 };
-    let mut m = GlbMesh { local_origin_m: [origin_m[0], origin_m[1], z0], ..GlbMesh::default() };
+    let mut m = GlbMesh {
+        local_origin_m: [origin_m[0], origin_m[1], z0],
+        ..GlbMesh::default()
+    };
     let (nc, nr) = (cols.len(), rows.len());
     for &r in &rows {
         for &c in &cols {
             let z = z_at(c, r);
-            let zr = if z.is_finite() { (f64::from(z) - z0) as f32 } else { 0.0 };
-            m.positions.push([(c as f64 * cell_m) as f32, -(r as f64 * cell_m) as f32, zr]);
+            let zr = if z.is_finite() {
+                (f64::from(z) - z0) as f32
+            } else {
+                0.0
+            };
+            m.positions
+                .push([(c as f64 * cell_m) as f32, -(r as f64 * cell_m) as f32, zr]);
             m.uvs.push([
                 (c as f32 + 0.5) / width.max(1) as f32,
                 (r as f32 + 0.5) / height.max(1) as f32,
@@ -188,9 +230,21 @@ fn vertex_normals(p: &[[f32; 3]], idx: &[u32]) -> Vec<[f32; 3]> {
     let mut acc = vec![[0.0f64; 3]; p.len()];
     for t in idx.chunks_exact(3) {
         let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);
-        let u = [f64::from(b[0] - a[0]), f64::from(b[1] - a[1]), f64::from(b[2] - a[2])];
-        let v = [f64::from(c[0] - a[0]), f64::from(c[1] - a[1]), f64::from(c[2] - a[2])];
-        let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+        let u = [
+            f64::from(b[0] - a[0]),
+            f64::from(b[1] - a[1]),
+            f64::from(b[2] - a[2]),
+        ];
+        let v = [
+            f64::from(c[0] - a[0]),
+            f64::from(c[1] - a[1]),
+            f64::from(c[2] - a[2]),
+        ];
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
         for &k in t {
             for d in 0..3 {
                 acc[k as usize][d] += n[d];
@@ -231,7 +285,13 @@ fn max_vertical_error(
             }
             for r in r0..=r1.min(height - 1) {
                 for c in c0..=c1.min(width - 1) {
-                    let Some(z) = heights.get(r * width + c).copied().filter(|z| z.is_finite()) else { continue };
+                    let Some(z) = heights
+                        .get(r * width + c)
+                        .copied()
+                        .filter(|z| z.is_finite())
+                    else {
+                        continue;
+                    };
                     let u = (c - c0) as f64 / (c1 - c0).max(1) as f64;
                     let v = (r - r0) as f64 / (r1 - r0).max(1) as f64;
                     // Barycentric interpolation on the NW–SE split.
@@ -261,7 +321,10 @@ mod tests {
         assert!(err < 1e-6);
         let glb = encode(&m).unwrap();
         assert_eq!(&glb[0..4], b"glTF");
-        assert_eq!(u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize, glb.len());
+        assert_eq!(
+            u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize,
+            glb.len()
+        );
         let (coarse, err2) = grid_mesh(&heights, 5, 4, [1.0, 2.0], 0.1, 2);
         assert_eq!(coarse.positions.len(), 3 * 3);
         assert!(err2 > 0.0, "decimation of a sawtooth must have an error");

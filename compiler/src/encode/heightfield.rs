@@ -89,7 +89,10 @@ pub fn fill_holes(heights: &[f32], width: usize, height: usize) -> Vec<f32> {
 pub fn encode(g: &GridInput<'_>) -> Result<EncodedHeightfield, EncodeError> {
     let (w, h) = (g.width as usize, g.height as usize);
     if g.heights.len() != w * h || w == 0 || h == 0 {
-        return Err(EncodeError::new("heightfield", format!("{} values for {w}x{h}", g.heights.len())));
+        return Err(EncodeError::new(
+            "heightfield",
+            format!("{} values for {w}x{h}", g.heights.len()),
+        ));
     }
     let filled = fill_holes(g.heights, w, h);
     let valid: Vec<bool> = g.heights.iter().map(|v| v.is_finite()).collect();
@@ -126,7 +129,10 @@ pub fn encode(g: &GridInput<'_>) -> Result<EncodedHeightfield, EncodeError> {
         site_origin_m: g.site_origin_m,
         source: g.source.to_string(),
     };
-    let values: Vec<u16> = filled.iter().map(|&z| meta.value_of(f64::from(z))).collect();
+    let values: Vec<u16> = filled
+        .iter()
+        .map(|&z| meta.value_of(f64::from(z)))
+        .collect();
     let mask: Vec<u8> = valid.iter().map(|&v| if v { 255 } else { 0 }).collect();
     Ok(EncodedHeightfield {
         height_png: png::grey16(g.width, g.height, &values)?,
@@ -142,7 +148,15 @@ mod tests {
 
     #[test]
     fn quantisation_error_is_within_half_a_step() {
-        let heights: Vec<f32> = (0..12).map(|i| if i == 5 { f32::NAN } else { i as f32 * 0.0731 - 0.02 }).collect();
+        let heights: Vec<f32> = (0..12)
+            .map(|i| {
+                if i == 5 {
+                    f32::NAN
+                } else {
+                    i as f32 * 0.0731 - 0.02
+                }
+            })
+            .collect();
         let g = GridInput {
             origin_m: [0.0, 1.0],
             cell_m: 0.1,

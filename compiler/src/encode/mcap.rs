@@ -66,23 +66,47 @@ fn quat() -> Value {
 
 fn schemas() -> [(&'static str, Vec<u8>); 4] {
     [
-        ("foxglove.CompressedImage", schema("foxglove.CompressedImage", json!({
+        (
+            "foxglove.CompressedImage",
+            schema(
+                "foxglove.CompressedImage",
+                json!({
             "timestamp": time_props(), "frame_id": {"type": "string"},
-            "data": {"type": "string", "contentEncoding": "base64"}, "format": {"type": "string"}}))),
-        ("foxglove.CameraCalibration", schema("foxglove.CameraCalibration", json!({
+            "data": {"type": "string", "contentEncoding": "base64"}, "format": {"type": "string"}}),
+            ),
+        ),
+        (
+            "foxglove.CameraCalibration",
+            schema(
+                "foxglove.CameraCalibration",
+                json!({
             "timestamp": time_props(), "frame_id": {"type": "string"},
             "width": {"type": "integer"}, "height": {"type": "integer"},
             "distortion_model": {"type": "string"},
             "D": {"type": "array", "items": {"type": "number"}},
             "K": {"type": "array", "items": {"type": "number"}},
             "R": {"type": "array", "items": {"type": "number"}},
-            "P": {"type": "array", "items": {"type": "number"}}}))),
-        ("foxglove.PoseInFrame", schema("foxglove.PoseInFrame", json!({
+            "P": {"type": "array", "items": {"type": "number"}}}),
+            ),
+        ),
+        (
+            "foxglove.PoseInFrame",
+            schema(
+                "foxglove.PoseInFrame",
+                json!({
             "timestamp": time_props(), "frame_id": {"type": "string"},
-            "pose": {"type": "object", "title": "foxglove.Pose", "properties": {"position": vec3(), "orientation": quat()}}}))),
-        ("foxglove.FrameTransform", schema("foxglove.FrameTransform", json!({
+            "pose": {"type": "object", "title": "foxglove.Pose", "properties": {"position": vec3(), "orientation": quat()}}}),
+            ),
+        ),
+        (
+            "foxglove.FrameTransform",
+            schema(
+                "foxglove.FrameTransform",
+                json!({
             "timestamp": time_props(), "parent_frame_id": {"type": "string"}, "child_frame_id": {"type": "string"},
-            "translation": vec3(), "rotation": quat()}))),
+            "translation": vec3(), "rotation": quat()}),
+            ),
+        ),
     ]
 }
 
@@ -93,7 +117,10 @@ fn stamp(t: u64) -> Value {
 fn pose_json(p: &Pose) -> (Value, Value) {
     let t = p.translation_m;
     let q = p.rotation_xyzw;
-    (json!({"x": t[0], "y": t[1], "z": t[2]}), json!({"x": q[0], "y": q[1], "z": q[2], "w": q[3]}))
+    (
+        json!({"x": t[0], "y": t[1], "z": t[2]}),
+        json!({"x": q[0], "y": q[1], "z": q[2], "w": q[3]}),
+    )
 }
 
 /// Encodes the captures into MCAP bytes and returns them with the index.
@@ -119,13 +146,18 @@ pub fn encode(captures: &[CaptureFrames]) -> Result<(Vec<u8>, CapturesIndex), En
             return Ok(*id);
         }
         let sid = schema_ids.get(schema).copied().unwrap_or(0);
-        let id = w.add_channel(sid, &topic, "json", &BTreeMap::new()).map_err(err)?;
+        let id = w
+            .add_channel(sid, &topic, "json", &BTreeMap::new())
+            .map_err(err)?;
         channels.insert(topic, id);
         Ok::<u16, EncodeError>(id)
     };
     // (log_time, topic) → message: written in that order.
     let mut messages: BTreeMap<(u64, String), (String, Value)> = BTreeMap::new();
-    let mut index = CapturesIndex { schema: "regolith.captures/1".to_string(), captures: Vec::new() };
+    let mut index = CapturesIndex {
+        schema: "regolith.captures/1".to_string(),
+        captures: Vec::new(),
+    };
     for (i, cap) in captures.iter().enumerate() {
         let t0 = (i as u64 + 1) * CAPTURE_SPACING_NS;
         let mut record = CaptureRecord {
@@ -137,7 +169,10 @@ pub fn encode(captures: &[CaptureFrames]) -> Result<(Vec<u8>, CapturesIndex), En
         };
         for cam in &cap.cameras {
             if cam.raw_png.len() != cam.rect_png.len() {
-                return Err(EncodeError::new("MCAP", "raw and rectified frame counts differ"));
+                return Err(EncodeError::new(
+                    "MCAP",
+                    "raw and rectified frame counts differ",
+                ));
             }
             record.cameras.push(CaptureCamera {
                 camera: cam.camera.clone(),
@@ -157,15 +192,27 @@ pub fn encode(captures: &[CaptureFrames]) -> Result<(Vec<u8>, CapturesIndex), En
                 "pose": {"position": position.clone(), "orientation": orientation.clone()}});
             let tf = json!({"timestamp": stamp(t0), "parent_frame_id": "ground", "child_frame_id": cam.camera,
                 "translation": position, "rotation": orientation});
-            messages.insert((t0, capture_topic(&cam.camera, "calibration")), ("foxglove.CameraCalibration".into(), calib));
-            messages.insert((t0, capture_topic(&cam.camera, "pose")), ("foxglove.PoseInFrame".into(), pose));
-            messages.insert((t0, format!("/tf/{}", cam.camera)), ("foxglove.FrameTransform".into(), tf));
+            messages.insert(
+                (t0, capture_topic(&cam.camera, "calibration")),
+                ("foxglove.CameraCalibration".into(), calib),
+            );
+            messages.insert(
+                (t0, capture_topic(&cam.camera, "pose")),
+                ("foxglove.PoseInFrame".into(), pose),
+            );
+            messages.insert(
+                (t0, format!("/tf/{}", cam.camera)),
+                ("foxglove.FrameTransform".into(), tf),
+            );
             for (f, (raw, rect)) in cam.raw_png.iter().zip(&cam.rect_png).enumerate() {
                 let t = t0 + f as u64 * FRAME_SPACING_NS;
                 for (what, png) in [("image_raw", raw), ("image_rect", rect)] {
                     let img = json!({"timestamp": stamp(t), "frame_id": cam.camera, "format": "png",
                         "data": base64::engine::general_purpose::STANDARD.encode(png)});
-                    messages.insert((t, capture_topic(&cam.camera, what)), ("foxglove.CompressedImage".into(), img));
+                    messages.insert(
+                        (t, capture_topic(&cam.camera, what)),
+                        ("foxglove.CompressedImage".into(), img),
+                    );
                 }
             }
         }
@@ -174,10 +221,19 @@ pub fn encode(captures: &[CaptureFrames]) -> Result<(Vec<u8>, CapturesIndex), En
     let mut sequence: BTreeMap<u16, u32> = BTreeMap::new();
     for ((t, topic), (schema, msg)) in messages {
         // All transforms share the `/tf` topic; the map key only keeps them apart.
-        let topic = if topic.starts_with("/tf/") { "/tf".to_string() } else { topic };
+        let topic = if topic.starts_with("/tf/") {
+            "/tf".to_string()
+        } else {
+            topic
+        };
         let id = channel(&mut w, topic, &schema)?;
         let seq = sequence.entry(id).or_insert(0);
-        let header = mcap::records::MessageHeader { channel_id: id, sequence: *seq, log_time: t, publish_time: t };
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: *seq,
+            log_time: t,
+            publish_time: t,
+        };
         *seq += 1;
         let data = regolith_format::canonical_json::to_string(&msg).into_bytes();
         w.write_to_known_channel(&header, &data).map_err(err)?;

@@ -22,6 +22,9 @@ pub struct EncodeError {
 
 impl EncodeError {
     pub(crate) fn new(what: &'static str, e: impl std::fmt::Display) -> EncodeError {
-        EncodeError { what, message: e.to_string() }
+        EncodeError {
+            what,
+            message: e.to_string(),
+        }
     }
 }

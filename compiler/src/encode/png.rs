@@ -28,7 +28,8 @@ fn encode(width: u32, height: u32, layout: Layout, data: &[u8]) -> Result<Vec<u8
         enc.set_filter(::png::FilterType::Paeth);
         enc.set_adaptive_filter(::png::AdaptiveFilterType::NonAdaptive);
         let mut w = enc.write_header().map_err(|e| EncodeError::new("PNG", e))?;
-        w.write_image_data(data).map_err(|e| EncodeError::new("PNG", e))?;
+        w.write_image_data(data)
+            .map_err(|e| EncodeError::new("PNG", e))?;
         w.finish().map_err(|e| EncodeError::new("PNG", e))?;
     }
     Ok(out)

@@ -8,8 +8,12 @@
 pub type Matrix4 = [[f64; 4]; 4];
 
 /// The identity matrix.
-pub const IDENTITY4: Matrix4 =
-    [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
+pub const IDENTITY4: Matrix4 = [
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 1.0, 0.0],
+    [0.0, 0.0, 0.0, 1.0],
+];
 
 /// Applies a [`Matrix4`] to a point.
 pub fn transform(m: &Matrix4, p: [f64; 3]) -> [f64; 3] {
