@@ -32,7 +32,7 @@ fn to_gltf(p: [f32; 3]) -> [f32; 3] {
 }
 
 fn pad4(buf: &mut Vec<u8>, fill: u8) {
-    while buf.len() % 4 != 0 {
+    while !buf.len().is_multiple_of(4) {
         buf.push(fill);
     }
 }
@@ -40,7 +40,7 @@ fn pad4(buf: &mut Vec<u8>, fill: u8) {
 /// Encodes the mesh as GLB bytes.
 pub fn encode(m: &GlbMesh) -> Result<Vec<u8>, EncodeError> {
     let n = m.positions.len();
-    if m.normals.len() != n || (!m.uvs.is_empty() && m.uvs.len() != n) || m.indices.len() % 3 != 0 {
+    if m.normals.len() != n || (!m.uvs.is_empty() && m.uvs.len() != n) || !m.indices.len().is_multiple_of(3) {
         return Err(EncodeError::new(
             "GLB",
             "attribute counts differ or indices not a triangle list",
@@ -170,11 +170,11 @@ pub fn grid_mesh(
     let step = step.max(1);
     let cols: Vec<usize> = (0..width)
         .step_by(step)
-        .chain((width > 0 && (width - 1) % step != 0).then_some(width - 1))
+        .chain((width > 0 && !(width - 1).is_multiple_of(step)).then_some(width - 1))
         .collect();
     let rows: Vec<usize> = (0..height)
         .step_by(step)
-        .chain((height > 0 && (height - 1) % step != 0).then_some(height - 1))
+        .chain((height > 0 && !(height - 1).is_multiple_of(step)).then_some(height - 1))
         .collect();
     let z_at = |c: usize, r: usize| heights.get(r * width + c).copied().unwrap_or(f32::NAN);
     let z0 = heights
