@@ -53,6 +53,20 @@ pub enum Command {
         #[arg(long, value_enum)]
         profile: Option<Profile>,
     },
+    /// Compile a survey campaign into a release (`--check`: parse and inventory only).
+    Compile {
+        /// The campaign folder (or its campaign.toml).
+        campaign: PathBuf,
+        /// Parse every referenced file and print an inventory; write nothing.
+        #[arg(long)]
+        check: bool,
+    },
+    /// Synthetic campaigns with ground truth and hidden effects.
+    Corpus {
+        /// What to do.
+        #[command(subcommand)]
+        action: CorpusAction,
+    },
     /// Remove objects no release references (safe: holds the database's write lock).
     Gc {
         /// The database folder.
@@ -67,4 +81,43 @@ pub enum Profile {
     Gazebo,
     /// Unreal landscape size, value 32768 = z 0, ZScale in the sidecar.
     Unreal,
+}
+
+/// `regolith corpus ...`
+#[derive(Debug, Subcommand)]
+pub enum CorpusAction {
+    /// Write a campaign folder (real file formats) plus `truth/`.
+    Generate {
+        /// Preset: `estec` (8.69 x 8.605 m yard, 6 scans, 8 captures) or `mini` (2 x 2 m, seconds).
+        #[arg(long, value_enum, default_value = "mini")]
+        preset: PresetArg,
+        /// Seed: the same seed gives byte-identical files.
+        #[arg(long)]
+        seed: u64,
+        /// Full resolution (2.5 mm truth grid, the real 0.030° scan step).
+        #[arg(long)]
+        full: bool,
+        /// Hidden effects, comma-separated: vignetting, blur, noise, gamma, exposure, shadows,
+        /// distortion, pose-bias, texture-lowpass.
+        #[arg(long, value_name = "E[,E...]")]
+        hidden_effect: Option<String>,
+        /// Override a hidden effect's parameter, e.g. `vignetting.strength=0.3` (repeatable).
+        #[arg(long, value_name = "E.name=value")]
+        effect_param: Vec<String>,
+        /// Output folder (created; must be empty or absent).
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write malformed variants of every input kind into this folder.
+        #[arg(long, value_name = "DIR")]
+        bad_inputs: Option<PathBuf>,
+    },
+}
+
+/// Corpus presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PresetArg {
+    /// The ESTEC yard.
+    Estec,
+    /// A small patch for tests.
+    Mini,
 }

@@ -1,5 +1,7 @@
 //! One module per subcommand; each returns an [`Outcome`] or an error (exit 2).
 
+mod compile;
+mod corpus;
 mod export;
 mod gc;
 mod inspect;
@@ -23,6 +25,8 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             profile,
         } => export::run(db, release, entry, to, *profile, cli.json),
         Command::Gc { db } => gc::run(db, cli.json),
+        Command::Compile { campaign, check } => compile::run(campaign, *check, cli.json),
+        Command::Corpus { action } => corpus::run(action, cli.json),
     }
 }
 

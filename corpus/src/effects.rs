@@ -1,0 +1,207 @@
+//! Hidden effects: which ones, with which parameters, and the baseline every real image has.
+//!
+//! The catalogue, parameter names and plausible ranges are `regolith_validator::sensor`'s
+//! (shared with the gap workflow, so the generator cannot hide something the fit cannot name).
+//! Each requested effect gets its parameters drawn from its range with the stage RNG
+//! `hidden.<name>`, then the user's `--effect-param E.name=value` overrides are applied.
+//! `shadows` is special: its light defaults to the campaign's `[lighting]` direction (the lab
+//! light is the one casting the shadows); if the user overrides its direction, the generator
+//! moves the lab light (and `[lighting]`) there too, so shading and shadows share one light.
+//!
+//! Independently of the hidden list, every real image gets a mild *baseline* sensor noise
+//! (gain 0.05 DN/DN, read σ 0.8 DN) so that the two frames of a pose differ and real-vs-real
+//! repeatability is measurable; a hidden `noise` replaces it. The baseline is recorded in
+//! `truth/hidden.json` next to the hidden effects.
+
+use std::collections::BTreeMap;
+
+use regolith_validator::render::Light;
+use regolith_validator::sensor::{Effect, SensorModel};
+
+use crate::seeding::stage_rng;
+use crate::CorpusError;
+
+/// A requested hidden effect with parameter overrides.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct HiddenSpec {
+    /// Catalogue name (`vignetting`, `pose-bias`...).
+    pub name: String,
+    /// Parameter overrides (`strength` → 0.3; `translation_m.x` → 0.01).
+    pub params: BTreeMap<String, f64>,
+}
+
+impl HiddenSpec {
+    /// An effect with drawn defaults.
+    pub fn named(name: &str) -> HiddenSpec {
+        HiddenSpec {
+            name: name.to_string(),
+            params: BTreeMap::new(),
+        }
+    }
+}
+
+/// Parses `E[,E...]` (the `--hidden-effect` list).
+pub fn parse_list(list: &str) -> Result<Vec<HiddenSpec>, CorpusError> {
+    let mut out: Vec<HiddenSpec> = Vec::new();
+    for name in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        check_name(name)?;
+        if !out.iter().any(|h| h.name == name) {
+            out.push(HiddenSpec::named(name));
+        }
+    }
+    Ok(out)
+}
+
+/// Applies one `E.param=value` override (`--effect-param`) to `specs`.
+pub fn apply_param(specs: &mut [HiddenSpec], arg: &str) -> Result<(), CorpusError> {
+    let bad = |expected: &str| CorpusError::Option {
+        option: "--effect-param",
+        expected: expected.to_string(),
+        found: arg.to_string(),
+    };
+    let (lhs, value) = arg.split_once('=').ok_or_else(|| bad("E.name=value"))?;
+    let (effect, param) = lhs
+        .trim()
+        .split_once('.')
+        .ok_or_else(|| bad("E.name=value"))?;
+    let value: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| bad("a number after '='"))?;
+    let ranges = check_name(effect)?;
+    if !ranges.iter().any(|r| r.name == param) {
+        let names: Vec<&str> = ranges.iter().map(|r| r.name).collect();
+        return Err(bad(&format!(
+            "one of the parameters of {effect}: {}",
+            names.join(", ")
+        )));
+    }
+    let spec = specs.iter_mut().find(|s| s.name == effect).ok_or_else(|| {
+        bad(&format!(
+            "an effect listed in --hidden-effect (not {effect})"
+        ))
+    })?;
+    spec.params.insert(param.to_string(), value);
+    Ok(())
+}
+
+fn check_name(
+    name: &str,
+) -> Result<&'static [regolith_validator::sensor::ParamRange], CorpusError> {
+    Effect::default_range(name).ok_or_else(|| CorpusError::Option {
+        option: "--hidden-effect",
+        expected: format!("one of {}", Effect::NAMES.join(", ")),
+        found: name.to_string(),
+    })
+}
+
+/// Draws the hidden model: defaults from the seed, then overrides.
+pub fn resolve(specs: &[HiddenSpec], seed: u64, light: &Light) -> Result<SensorModel, CorpusError> {
+    let mut effects = Vec::new();
+    for spec in specs {
+        check_name(&spec.name)?;
+        let mut rng = stage_rng(seed, &format!("hidden.{}", spec.name));
+        let drawn = Effect::sample(&spec.name, &mut rng).ok_or_else(|| CorpusError::Option {
+            option: "--hidden-effect",
+            expected: "a catalogue effect".into(),
+            found: spec.name.clone(),
+        })?;
+        let mut values: BTreeMap<&str, f64> = BTreeMap::new();
+        if spec.name == "shadows" {
+            values.insert("azimuth_deg", light.azimuth_deg);
+            values.insert("elevation_deg", light.elevation_deg);
+        }
+        for (k, v) in &spec.params {
+            values.insert(k.as_str(), *v);
+        }
+        effects.push(drawn.with_params(&values));
+    }
+    Ok(SensorModel { effects })
+}
+
+/// The baseline noise of every real image.
+pub const BASELINE_NOISE: Effect = Effect::Noise {
+    gain: 0.05,
+    read_sigma: 0.8,
+};
+
+/// The model the real images are made with: the hidden effects plus the baseline noise
+/// unless a hidden `noise` replaces it.
+pub fn real_model(hidden: &SensorModel) -> SensorModel {
+    let mut effects = hidden.effects.clone();
+    if !effects.iter().any(|e| matches!(e, Effect::Noise { .. })) {
+        effects.push(BASELINE_NOISE);
+    }
+    SensorModel { effects }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIGHT: Light = Light {
+        azimuth_deg: 210.0,
+        elevation_deg: 62.0,
+        ambient: 0.35,
+    };
+
+    #[test]
+    fn overrides_win_and_defaults_are_in_range() {
+        let mut specs = parse_list("vignetting,pose-bias,shadows").unwrap();
+        apply_param(&mut specs, "vignetting.strength=0.3").unwrap();
+        apply_param(&mut specs, "pose-bias.translation_m.x=0.01").unwrap();
+        let m = resolve(&specs, 5, &LIGHT).unwrap();
+        assert_eq!(m.effects[0], Effect::Vignetting { strength: 0.3 });
+        match m.effects[1] {
+            Effect::PoseBias {
+                translation_m,
+                rotation_deg,
+            } => {
+                assert_eq!(translation_m[0], 0.01);
+                assert!(rotation_deg.iter().all(|r| r.abs() <= 0.5));
+            }
+            e => panic!("{e:?}"),
+        }
+        assert_eq!(
+            m.effects[2],
+            Effect::Shadows {
+                azimuth_deg: 210.0,
+                elevation_deg: 62.0
+            }
+        );
+        assert_eq!(
+            resolve(&specs, 5, &LIGHT).unwrap(),
+            m,
+            "same seed, same draw"
+        );
+    }
+
+    #[test]
+    fn bad_names_are_rejected_with_the_catalogue() {
+        let e = parse_list("vignetting,sparkle").unwrap_err().to_string();
+        assert!(
+            e.contains("sparkle") && e.contains("texture-lowpass"),
+            "{e}"
+        );
+        let mut specs = parse_list("blur").unwrap();
+        assert!(apply_param(&mut specs, "blur.radius=2")
+            .unwrap_err()
+            .to_string()
+            .contains("sigma_px"));
+        assert!(apply_param(&mut specs, "gamma.gamma=2").is_err());
+        assert!(apply_param(&mut specs, "blur.sigma_px=abc").is_err());
+    }
+
+    #[test]
+    fn baseline_noise_only_without_hidden_noise() {
+        let plain = real_model(&SensorModel::default());
+        assert_eq!(plain.effects, vec![BASELINE_NOISE]);
+        let noisy = SensorModel {
+            effects: vec![Effect::Noise {
+                gain: 0.3,
+                read_sigma: 2.0,
+            }],
+        };
+        assert_eq!(real_model(&noisy).effects.len(), 1);
+    }
+}
