@@ -9,6 +9,7 @@ pub mod encode;
 pub mod error;
 pub mod export;
 pub mod ingest;
+pub mod inventory;
 pub mod stage;
 pub mod stages;
 

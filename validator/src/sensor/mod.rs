@@ -1,1 +1,195 @@
-//! Sensor effect model (being written).
+//! The sensor/effect model: the catalogue of ways a real capture differs from a plain render.
+//!
+//! The corpus generator hides these effects in its synthetic "real" images and the gap
+//! workflow fits them back, so both share this one definition (names are the serde tags, in
+//! kebab-case, listed in `format-spec/registry.md`). Effects act at four places:
+//!
+//! | where | effects | method |
+//! |---|---|---|
+//! | geometry | `distortion`, `pose-bias` | [`SensorModel::camera`], [`SensorModel::pose`] |
+//! | render | `shadows` | [`SensorModel::render_options`] |
+//! | texture | `texture-lowpass` | [`SensorModel::albedo`] |
+//! | image | `vignetting`, `blur`, `exposure`, `noise`, `gamma` | [`SensorModel::image`] |
+//!
+//! The image effects run in the physical order of a camera, whatever their order in the list:
+//! optics (vignetting, then the blur PSF), exposure into digital numbers, sensor noise, then
+//! the response curve (gamma); see [`image`]. Effects of the same kind apply in list order.
+//! An empty model is the plain model: `DN = 255 * radiance`, no other change.
+
+mod blur;
+mod effects;
+pub mod image;
+
+use serde::{Deserialize, Serialize};
+
+use regolith_format::camera_model::CameraModel;
+use regolith_format::frames::{quat_from_axis_angle, Pose};
+
+use crate::render::{AlbedoGrid, Light, RenderOptions};
+
+pub use blur::gaussian_blur;
+pub use effects::ParamRange;
+pub use image::quantise_u8;
+
+/// Ambient share of the light that [`SensorModel::render_options`] returns for a `shadows`
+/// effect (callers may overwrite it).
+pub const SHADOW_AMBIENT: f64 = 0.15;
+
+/// One effect of the catalogue.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "effect", rename_all = "kebab-case")]
+pub enum Effect {
+    /// cos⁴-law falloff with corner/centre ratio `1 - strength` (see [`image::vignetting_factor`]).
+    Vignetting {
+        /// 0 = none, 0.5 = corners at half the centre's radiance.
+        strength: f64,
+    },
+    /// Gaussian point-spread function.
+    Blur {
+        /// Standard deviation, pixels.
+        sigma_px: f64,
+    },
+    /// Shot noise (variance `gain * signal`, DN) plus Gaussian read noise; seeded.
+    Noise {
+        /// DN of variance per DN of signal.
+        gain: f64,
+        /// Read-noise standard deviation, DN.
+        read_sigma: f64,
+    },
+    /// Response curve `out = in^(1/gamma)` on normalised DN.
+    Gamma {
+        /// 1 = linear.
+        gamma: f64,
+    },
+    /// `out = gain * in + offset`, on normalised radiance (1.0 = 255 DN).
+    Exposure {
+        /// Multiplier.
+        gain: f64,
+        /// Black-level offset, normalised.
+        offset: f64,
+    },
+    /// Cast shadows of this light (a render-time effect).
+    Shadows {
+        /// Azimuth toward the light, degrees from +x toward +y.
+        azimuth_deg: f64,
+        /// Elevation of the light, degrees.
+        elevation_deg: f64,
+    },
+    /// Extra radial distortion added to the calibration's `k1`, `k2`.
+    Distortion {
+        /// Added to `k1`.
+        dk1: f64,
+        /// Added to `k2`.
+        dk2: f64,
+    },
+    /// A fixed offset between the calibrated and the true camera pose, in camera axes.
+    PoseBias {
+        /// Translation, metres, camera frame.
+        translation_m: [f64; 3],
+        /// Rotations about the camera x, y, z axes, degrees (applied x first, then y, then z).
+        rotation_deg: [f64; 3],
+    },
+    /// The albedo blurred by a Gaussian of this size (texture-side).
+    TextureLowpass {
+        /// Standard deviation, metres on the ground.
+        sigma_m: f64,
+    },
+}
+
+/// A list of effects; empty = the plain model.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SensorModel {
+    /// The effects.
+    pub effects: Vec<Effect>,
+}
+
+impl SensorModel {
+    /// `base` with every `distortion` effect added to its `k1`, `k2`.
+    pub fn camera(&self, base: &CameraModel) -> CameraModel {
+        let mut cam = base.clone();
+        for e in &self.effects {
+            if let Effect::Distortion { dk1, dk2 } = e {
+                cam.distortion.k1 += dk1;
+                cam.distortion.k2 += dk2;
+            }
+        }
+        cam
+    }
+
+    /// The true camera pose: `ground_from_camera * bias` for every `pose-bias`, where the bias
+    /// maps true-camera into calibrated-camera coordinates (`R = Rz * Ry * Rx`).
+    pub fn pose(&self, ground_from_camera: &Pose) -> Pose {
+        let mut pose = *ground_from_camera;
+        for e in &self.effects {
+            if let Effect::PoseBias {
+                translation_m,
+                rotation_deg,
+            } = e
+            {
+                let [rx, ry, rz] = rotation_deg.map(f64::to_radians);
+                let q = |axis: [f64; 3], a: f64| Pose {
+                    translation_m: [0.0; 3],
+                    rotation_xyzw: quat_from_axis_angle(axis, a),
+                };
+                let rot = q([0.0, 0.0, 1.0], rz)
+                    .compose(&q([0.0, 1.0, 0.0], ry))
+                    .compose(&q([1.0, 0.0, 0.0], rx));
+                let bias = Pose {
+                    translation_m: *translation_m,
+                    rotation_xyzw: rot.rotation_xyzw,
+                };
+                pose = pose.compose(&bias);
+            }
+        }
+        pose
+    }
+
+    /// The render options and light implied by the model: a `shadows` effect (the last one
+    /// wins) turns shadows on and returns its light with [`SHADOW_AMBIENT`].
+    pub fn render_options(&self, base: &RenderOptions) -> (RenderOptions, Option<Light>) {
+        let mut opts = *base;
+        let mut light = None;
+        for e in &self.effects {
+            if let Effect::Shadows {
+                azimuth_deg,
+                elevation_deg,
+            } = *e
+            {
+                opts.shadows = true;
+                light = Some(Light {
+                    azimuth_deg,
+                    elevation_deg,
+                    ambient: SHADOW_AMBIENT,
+                });
+            }
+        }
+        (opts, light)
+    }
+
+    /// `grid` low-passed by every `texture-lowpass` effect (sigma converted to cells).
+    pub fn albedo(&self, grid: &AlbedoGrid) -> AlbedoGrid {
+        let mut out = grid.clone();
+        for e in &self.effects {
+            if let Effect::TextureLowpass { sigma_m } = e {
+                if grid.cell_m > 0.0 {
+                    out.value =
+                        gaussian_blur(&out.value, out.width, out.height, sigma_m / grid.cell_m);
+                }
+            }
+        }
+        out
+    }
+
+    /// Turns linear radiance into digital numbers (0..255 scale, unclamped float) through the
+    /// image effects, in the order documented in [`image`]. `seed` drives the noise.
+    pub fn image(
+        &self,
+        radiance: &[f32],
+        width: usize,
+        height: usize,
+        camera: &CameraModel,
+        seed: u64,
+    ) -> Vec<f32> {
+        image::apply(&self.effects, radiance, width, height, camera, seed)
+    }
+}

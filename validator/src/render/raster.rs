@@ -1,0 +1,178 @@
+//! The per-pixel loop: camera rays, supersampling, shading and shadow rays.
+//!
+//! Each output pixel is independent: its samples are generated from its own coordinates, traced
+//! and averaged in a fixed order, and rows are computed in parallel with an indexed rayon
+//! `map().collect()`, so the output bytes do not depend on the thread count.
+//!
+//! Sample positions: with `n = supersample`, sample `(a, b)` of pixel `(c, r)` is at
+//! `(c + (a + 0.5) / n - 0.5, r + (b + 0.5) / n - 0.5)` and the radiance is their plain mean
+//! (box filter, misses count as 0). Depth and mask always come from the pixel centre, which is
+//! one of the samples when `n` is odd and an extra ray when it is even. A camera ray direction
+//! is `R * (x, y, 1)` with `(x, y)` the normalised undistorted coordinates, so the ray
+//! parameter `t` of a hit *is* its camera-frame depth.
+
+use rayon::prelude::*;
+use regolith_format::camera_model::CameraModel;
+
+use super::shading::{light_direction, sample_albedo, shade};
+use super::{Hit, Light, RenderOptions, Rendered, Scene, SceneKind, View};
+
+/// Shadow-ray start offset along the normal: heightfields, in cells.
+const HF_SHADOW_EPS_CELLS: f64 = 1e-3;
+/// Shadow-ray start offset along the normal: meshes, as a share of the bounding-box diagonal.
+const MESH_SHADOW_EPS: f64 = 1e-6;
+
+struct Sample {
+    radiance: f64,
+    depth: Option<f64>,
+}
+
+pub(crate) fn render_scene(
+    scene: &Scene<'_>,
+    light: &Light,
+    view: &View,
+    opts: &RenderOptions,
+) -> Rendered {
+    let cam = &view.camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let n = opts.supersample.max(1);
+    let rot = view.ground_from_camera.rotation_matrix();
+    let centre = view.ground_from_camera.translation_m;
+    let to_light = light_direction(light);
+    let ambient = light.ambient;
+
+    let sample = |u: f64, v: f64| -> Sample {
+        let (x, y) = if opts.distort {
+            unproject(cam, u, v)
+        } else {
+            let y = (v - cam.cy) / cam.fy;
+            ((u - cam.cx - cam.skew * y) / cam.fx, y)
+        };
+        let d = std::array::from_fn(|k| rot[k][0] * x + rot[k][1] * y + rot[k][2]);
+        let Some((hit, albedo, eps)) = trace(scene, centre, d) else {
+            return Sample {
+                radiance: 0.0,
+                depth: None,
+            };
+        };
+        let n_dot_l: f64 = (0..3).map(|k| hit.normal[k] * to_light[k]).sum();
+        let visible = if opts.shadows && n_dot_l > 0.0 {
+            let o = std::array::from_fn(|k| hit.point[k] + hit.normal[k] * eps);
+            if occluded(scene, o, to_light) {
+                0.0
+            } else {
+                1.0
+            }
+        } else {
+            1.0
+        };
+        Sample {
+            radiance: shade(f64::from(albedo), ambient, hit.normal, to_light, visible),
+            depth: Some(hit.t),
+        }
+    };
+
+    let rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)> = (0..h)
+        .into_par_iter()
+        .map(|r| {
+            let mut rad = vec![0f32; w];
+            let mut depth = vec![f32::NAN; w];
+            let mut mask = vec![0u8; w];
+            for c in 0..w {
+                let mut sum = 0.0;
+                let mut centre_depth = None;
+                for b in 0..n {
+                    for a in 0..n {
+                        let du = (f64::from(a) + 0.5) / f64::from(n) - 0.5;
+                        let dv = (f64::from(b) + 0.5) / f64::from(n) - 0.5;
+                        let s = sample(c as f64 + du, r as f64 + dv);
+                        sum += s.radiance;
+                        if n % 2 == 1 && a == n / 2 && b == n / 2 {
+                            centre_depth = s.depth;
+                        }
+                    }
+                }
+                if n.is_multiple_of(2) {
+                    centre_depth = sample(c as f64, r as f64).depth;
+                }
+                if let (Some(px), Some(d), Some(m)) =
+                    (rad.get_mut(c), depth.get_mut(c), mask.get_mut(c))
+                {
+                    *px = (sum / f64::from(n * n)) as f32;
+                    if let Some(z) = centre_depth {
+                        *d = z as f32;
+                        *m = 255;
+                    }
+                }
+            }
+            (rad, depth, mask)
+        })
+        .collect();
+
+    let mut out = Rendered {
+        width: w,
+        height: h,
+        radiance: Vec::with_capacity(w * h),
+        depth: Vec::with_capacity(w * h),
+        mask: Vec::with_capacity(w * h),
+    };
+    for (rad, depth, mask) in rows {
+        out.radiance.extend(rad);
+        out.depth.extend(depth);
+        out.mask.extend(mask);
+    }
+    out
+}
+
+/// The nearest hit, its albedo and the shadow-ray offset to use there.
+fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3]) -> Option<(Hit, f32, f64)> {
+    match &scene.kind {
+        SceneKind::Heightfield { tracer, albedo } => {
+            let hit = tracer.trace(o, d, f64::INFINITY)?;
+            let a = sample_albedo(albedo, hit.point[0], hit.point[1]);
+            Some((hit, a, tracer.cell_m() * HF_SHADOW_EPS_CELLS))
+        }
+        SceneKind::Mesh { tracer } => {
+            let (hit, a) = tracer.trace_albedo(o, d, f64::INFINITY)?;
+            Some((hit, a, tracer.extent() * MESH_SHADOW_EPS))
+        }
+    }
+}
+
+fn occluded(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3]) -> bool {
+    match &scene.kind {
+        SceneKind::Heightfield { tracer, .. } => tracer.occluded(o, d, f64::INFINITY),
+        SceneKind::Mesh { tracer } => tracer.occluded(o, d, f64::INFINITY),
+    }
+}
+
+/// `CameraModel::unproject` with an analytic Jacobian: the same Newton iteration on the same
+/// equations (so the same root, to ~1e-12), but ~4x cheaper than the numerical Jacobian, which
+/// matters at one call per sample.
+pub(crate) fn unproject(cam: &CameraModel, u: f64, v: f64) -> (f64, f64) {
+    let d = cam.distortion;
+    let yd = (v - cam.cy) / cam.fy;
+    let xd = (u - cam.cx - cam.skew * yd) / cam.fx;
+    let (mut x, mut y) = (xd, yd);
+    for _ in 0..20 {
+        let r2 = x * x + y * y;
+        let rad = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3));
+        let drad = d.k1 + r2 * (2.0 * d.k2 + 3.0 * d.k3 * r2);
+        let ex = x * rad + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * x * x) - xd;
+        let ey = y * rad + d.p1 * (r2 + 2.0 * y * y) + 2.0 * d.p2 * x * y - yd;
+        if ex.abs() < 1e-14 && ey.abs() < 1e-14 {
+            break;
+        }
+        let j00 = rad + 2.0 * x * x * drad + 2.0 * d.p1 * y + 6.0 * d.p2 * x;
+        let j01 = 2.0 * x * y * drad + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
+        let j10 = 2.0 * x * y * drad + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
+        let j11 = rad + 2.0 * y * y * drad + 6.0 * d.p1 * y + 2.0 * d.p2 * x;
+        let det = j00 * j11 - j01 * j10;
+        if det.abs() < 1e-12 {
+            break;
+        }
+        x -= (j11 * ex - j01 * ey) / det;
+        y -= (-j10 * ex + j00 * ey) / det;
+    }
+    (x, y)
+}

@@ -1,0 +1,217 @@
+//! The effect catalogue: names, parameters, plausible ranges and construction from values.
+//!
+//! One builder ([`Effect::build`]) turns a name and a parameter map into an effect; sampling
+//! random effects for the corpus, replacing parameters while fitting, and the ranges all go
+//! through the same table ([`Effect::default_range`]), so the three can never disagree.
+//! Parameter names are the field names; the array fields of `pose-bias` are split into
+//! `translation_m.x|y|z` and `rotation_deg.x|y|z`.
+
+use std::collections::BTreeMap;
+
+use rand::Rng;
+
+use super::Effect;
+
+/// The plausible range of one effect parameter, and its neutral (no-effect) value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamRange {
+    /// Parameter name as in [`Effect::params`].
+    pub name: &'static str,
+    /// Smallest plausible value.
+    pub min: f64,
+    /// Largest plausible value.
+    pub max: f64,
+    /// The value at which the effect does nothing.
+    pub neutral: f64,
+}
+
+const fn p(name: &'static str, min: f64, max: f64, neutral: f64) -> ParamRange {
+    ParamRange {
+        name,
+        min,
+        max,
+        neutral,
+    }
+}
+
+/// Plausible ranges for a rover navigation camera (1 MP, 8-bit) over a lab terrain.
+const VIGNETTING: &[ParamRange] = &[p("strength", 0.0, 0.5, 0.0)];
+const BLUR: &[ParamRange] = &[p("sigma_px", 0.3, 2.0, 0.0)];
+const NOISE: &[ParamRange] = &[p("gain", 0.02, 0.5, 0.0), p("read_sigma", 0.5, 3.0, 0.0)];
+const GAMMA: &[ParamRange] = &[p("gamma", 1.0, 2.4, 1.0)];
+const EXPOSURE: &[ParamRange] = &[p("gain", 0.7, 1.3, 1.0), p("offset", -0.05, 0.05, 0.0)];
+const SHADOWS: &[ParamRange] = &[
+    p("azimuth_deg", 0.0, 360.0, 0.0),
+    p("elevation_deg", 15.0, 60.0, 90.0),
+];
+const DISTORTION: &[ParamRange] = &[p("dk1", -0.05, 0.05, 0.0), p("dk2", -0.02, 0.02, 0.0)];
+const POSE_BIAS: &[ParamRange] = &[
+    p("translation_m.x", -0.02, 0.02, 0.0),
+    p("translation_m.y", -0.02, 0.02, 0.0),
+    p("translation_m.z", -0.02, 0.02, 0.0),
+    p("rotation_deg.x", -0.5, 0.5, 0.0),
+    p("rotation_deg.y", -0.5, 0.5, 0.0),
+    p("rotation_deg.z", -0.5, 0.5, 0.0),
+];
+const TEXTURE_LOWPASS: &[ParamRange] = &[p("sigma_m", 0.002, 0.02, 0.0)];
+
+impl Effect {
+    /// Every catalogue name, in catalogue order.
+    pub const NAMES: [&'static str; 9] = [
+        "vignetting",
+        "blur",
+        "noise",
+        "gamma",
+        "exposure",
+        "shadows",
+        "distortion",
+        "pose-bias",
+        "texture-lowpass",
+    ];
+
+    /// The catalogue name (the serde tag).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Effect::Vignetting { .. } => "vignetting",
+            Effect::Blur { .. } => "blur",
+            Effect::Noise { .. } => "noise",
+            Effect::Gamma { .. } => "gamma",
+            Effect::Exposure { .. } => "exposure",
+            Effect::Shadows { .. } => "shadows",
+            Effect::Distortion { .. } => "distortion",
+            Effect::PoseBias { .. } => "pose-bias",
+            Effect::TextureLowpass { .. } => "texture-lowpass",
+        }
+    }
+
+    /// Parameter name → value.
+    pub fn params(&self) -> BTreeMap<&'static str, f64> {
+        let list: Vec<(&'static str, f64)> = match *self {
+            Effect::Vignetting { strength } => vec![("strength", strength)],
+            Effect::Blur { sigma_px } => vec![("sigma_px", sigma_px)],
+            Effect::Noise { gain, read_sigma } => vec![("gain", gain), ("read_sigma", read_sigma)],
+            Effect::Gamma { gamma } => vec![("gamma", gamma)],
+            Effect::Exposure { gain, offset } => vec![("gain", gain), ("offset", offset)],
+            Effect::Shadows {
+                azimuth_deg,
+                elevation_deg,
+            } => {
+                vec![
+                    ("azimuth_deg", azimuth_deg),
+                    ("elevation_deg", elevation_deg),
+                ]
+            }
+            Effect::Distortion { dk1, dk2 } => vec![("dk1", dk1), ("dk2", dk2)],
+            Effect::PoseBias {
+                translation_m: t,
+                rotation_deg: r,
+            } => vec![
+                ("translation_m.x", t[0]),
+                ("translation_m.y", t[1]),
+                ("translation_m.z", t[2]),
+                ("rotation_deg.x", r[0]),
+                ("rotation_deg.y", r[1]),
+                ("rotation_deg.z", r[2]),
+            ],
+            Effect::TextureLowpass { sigma_m } => vec![("sigma_m", sigma_m)],
+        };
+        list.into_iter().collect()
+    }
+
+    /// The plausible parameter ranges of effect `name`; `None` for an unknown name.
+    pub fn default_range(name: &str) -> Option<&'static [ParamRange]> {
+        Some(match name {
+            "vignetting" => VIGNETTING,
+            "blur" => BLUR,
+            "noise" => NOISE,
+            "gamma" => GAMMA,
+            "exposure" => EXPOSURE,
+            "shadows" => SHADOWS,
+            "distortion" => DISTORTION,
+            "pose-bias" => POSE_BIAS,
+            "texture-lowpass" => TEXTURE_LOWPASS,
+            _ => return None,
+        })
+    }
+
+    /// Builds effect `name` from `values`; parameters missing from `values` take their
+    /// neutral value. `None` for an unknown name.
+    pub fn build(name: &str, values: &BTreeMap<&str, f64>) -> Option<Effect> {
+        let ranges = Effect::default_range(name)?;
+        let v = |key: &str| {
+            values
+                .get(key)
+                .copied()
+                .or_else(|| ranges.iter().find(|r| r.name == key).map(|r| r.neutral))
+                .unwrap_or(0.0)
+        };
+        Some(match name {
+            "vignetting" => Effect::Vignetting {
+                strength: v("strength"),
+            },
+            "blur" => Effect::Blur {
+                sigma_px: v("sigma_px"),
+            },
+            "noise" => Effect::Noise {
+                gain: v("gain"),
+                read_sigma: v("read_sigma"),
+            },
+            "gamma" => Effect::Gamma { gamma: v("gamma") },
+            "exposure" => Effect::Exposure {
+                gain: v("gain"),
+                offset: v("offset"),
+            },
+            "shadows" => Effect::Shadows {
+                azimuth_deg: v("azimuth_deg"),
+                elevation_deg: v("elevation_deg"),
+            },
+            "distortion" => Effect::Distortion {
+                dk1: v("dk1"),
+                dk2: v("dk2"),
+            },
+            "pose-bias" => Effect::PoseBias {
+                translation_m: [
+                    v("translation_m.x"),
+                    v("translation_m.y"),
+                    v("translation_m.z"),
+                ],
+                rotation_deg: [
+                    v("rotation_deg.x"),
+                    v("rotation_deg.y"),
+                    v("rotation_deg.z"),
+                ],
+            },
+            "texture-lowpass" => Effect::TextureLowpass {
+                sigma_m: v("sigma_m"),
+            },
+            _ => return None,
+        })
+    }
+
+    /// The same effect with the parameters named in `values` replaced (others kept; unknown
+    /// names ignored).
+    pub fn with_params(&self, values: &BTreeMap<&str, f64>) -> Effect {
+        let mut merged = self.params();
+        for (k, v) in &mut merged {
+            if let Some(new) = values.get(k) {
+                *v = *new;
+            }
+        }
+        let merged: BTreeMap<&str, f64> = merged.into_iter().collect();
+        Effect::build(self.name(), &merged).unwrap_or(*self)
+    }
+
+    /// Effect `name` with every parameter drawn uniformly from its plausible range.
+    pub fn sample<R: Rng>(name: &str, rng: &mut R) -> Option<Effect> {
+        let values: BTreeMap<&str, f64> = Effect::default_range(name)?
+            .iter()
+            .map(|r| (r.name, rng.gen_range(r.min..=r.max)))
+            .collect();
+        Effect::build(name, &values)
+    }
+
+    /// The effect with every parameter at its neutral value (it changes nothing).
+    pub fn neutral(name: &str) -> Option<Effect> {
+        Effect::build(name, &BTreeMap::new())
+    }
+}

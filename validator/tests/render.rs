@@ -1,0 +1,564 @@
+//! Renderer tests: geometry against analytic ray/plane distances, shading against the formula,
+//! shadows, a marker projected with `CameraModel::project`, distorted vs. remapped
+//! undistorted renders, heightfield vs. mesh, and thread-count determinism. The distorted
+//! camera is the real OpenCV sample calibration from `../shared/realdata`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use regolith_format::camera_model::{CameraModel, Distortion};
+use regolith_validator::render::{
+    render, AlbedoGrid, Geometry, HeightGrid, HeightfieldTracer, Light, RenderOptions, Rendered,
+    Scene, TriMeshF32, View,
+};
+
+const PLAIN: RenderOptions = RenderOptions {
+    distort: false,
+    shadows: false,
+    supersample: 1,
+};
+
+fn grid(w: usize, h: usize, cell: f64, f: impl Fn(f64, f64) -> f64) -> HeightGrid {
+    let mut z = Vec::new();
+    for r in 0..h {
+        for c in 0..w {
+            z.push(f(c as f64 * cell, -(r as f64) * cell) as f32);
+        }
+    }
+    HeightGrid {
+        origin_m: [0.0, 0.0],
+        cell_m: cell,
+        width: w,
+        height: h,
+        z,
+    }
+}
+
+fn albedo(w: usize, h: usize, cell: f64, f: impl Fn(f64, f64) -> f64) -> AlbedoGrid {
+    let g = grid(w, h, cell, f);
+    AlbedoGrid {
+        origin_m: g.origin_m,
+        cell_m: cell,
+        width: w,
+        height: h,
+        value: g.z,
+    }
+}
+
+fn heightfield(g: HeightGrid, a: f64) -> Geometry {
+    let alb = albedo(2, 2, 100.0, |_, _| a);
+    Geometry::Heightfield {
+        grid: g,
+        albedo: alb,
+    }
+}
+
+fn light(az: f64, el: f64, ambient: f64) -> Light {
+    Light {
+        azimuth_deg: az,
+        elevation_deg: el,
+        ambient,
+    }
+}
+
+/// Numbers of `key: !!opencv-matrix ... data: [ ... ]` in an OpenCV YAML file.
+fn opencv_matrix(text: &str, key: &str) -> Vec<f64> {
+    let start = text.find(key).expect("key present");
+    let data = start + text[start..].find("data:").expect("data") + 5;
+    let open = data + text[data..].find('[').expect("[") + 1;
+    let close = open + text[open..].find(']').expect("]");
+    text[open..close]
+        .split(',')
+        .map(|v| v.trim().parse().expect("number"))
+        .collect()
+}
+
+/// The real 640 x 480 calibration of `realdata/calibration/left_intrinsics.yml`.
+fn real_camera() -> CameraModel {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/realdata/calibration/left_intrinsics.yml"
+    );
+    let text = std::fs::read_to_string(path).expect("realdata sample present");
+    let k = opencv_matrix(&text, "camera_matrix");
+    let d = opencv_matrix(&text, "distortion_coefficients");
+    // PROVENANCE.md facts: fx = fy ~ 535.92, cx ~ 342.28, cy ~ 235.57, k1 ~ -0.266.
+    assert!((k[0] - 535.92).abs() < 0.01 && (k[4] - 535.92).abs() < 0.01);
+    assert!(
+        (k[2] - 342.28).abs() < 0.01
+            && (k[5] - 235.57).abs() < 0.01
+            && (d[0] + 0.266).abs() < 0.001
+    );
+    CameraModel {
+        distortion: Distortion {
+            k1: d[0],
+            k2: d[1],
+            p1: d[2],
+            p2: d[3],
+            k3: d[4],
+        },
+        ..CameraModel::pinhole(640, 480, k[0], k[4], k[2], k[5])
+    }
+}
+
+fn at<T: Copy>(r: &Rendered, v: &[T], px: [f64; 2]) -> T {
+    v[px[1].round() as usize * r.width + px[0].round() as usize]
+}
+
+/// Camera z of the plane `z = a x + b y + c` along the ray of pixel `(u, v)` (undistorted).
+fn plane_depth(view: &View, (a, b, c): (f64, f64, f64), u: f64, v: f64) -> f64 {
+    let cam = &view.camera;
+    let d = view
+        .ground_from_camera
+        .rotate([(u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0]);
+    let e = view.ground_from_camera.translation_m;
+    // n = (a, b, -1): a x + b y - z + c = 0.
+    (-(a * e[0] + b * e[1] - e[2] + c)) / (a * d[0] + b * d[1] - d[2])
+}
+
+#[test]
+fn flat_and_tilted_plane_depths_match_analytic() {
+    let cam = CameraModel::pinhole(101, 81, 80.0, 80.0, 50.0, 40.0);
+    let flat = heightfield(grid(101, 101, 0.05, |_, _| 0.5), 0.5);
+    let down = View::look_at(cam.clone(), [2.5, -2.5, 3.0], [2.5, -2.5, 0.5]);
+    let r = render(&flat, &light(0.0, 60.0, 0.2), &down, &PLAIN);
+    assert!((at(&r, &r.depth, [50.0, 40.0]) - 2.5).abs() < 1e-3);
+    assert!(r.mask.iter().all(|&m| m == 255), "the plane fills the view");
+
+    let plane = (0.1, -0.05, 0.2);
+    let tilted = heightfield(
+        grid(101, 101, 0.05, |x, y| plane.0 * x + plane.1 * y + plane.2),
+        0.5,
+    );
+    let target = [2.5, -2.0, 0.1 * 2.5 + 0.05 * 2.0 + 0.2];
+    let eye = [0.5, -4.5, 2.0];
+    let oblique = View::look_at(cam, eye, target);
+    let r = render(&tilted, &light(0.0, 60.0, 0.2), &oblique, &PLAIN);
+    let dist = ((0..3).map(|k| (target[k] - eye[k]).powi(2)).sum::<f64>()).sqrt();
+    assert!((f64::from(at(&r, &r.depth, [50.0, 40.0])) - dist).abs() < 1e-3);
+    let mut checked = 0;
+    for v in 0..r.height {
+        for u in 0..r.width {
+            if r.mask[v * r.width + u] == 255 {
+                let want = plane_depth(&oblique, plane, u as f64, v as f64);
+                assert!(
+                    (f64::from(r.depth[v * r.width + u]) - want).abs() < 1e-3,
+                    "pixel {u},{v}"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(
+        checked > r.width * r.height / 2,
+        "most of the view sees the plane: {checked}"
+    );
+}
+
+#[test]
+fn shading_matches_formula_on_a_tilted_plane() {
+    let (a, b) = (0.3, -0.2);
+    let g = heightfield(grid(81, 81, 0.05, |x, y| a * x + b * y), 0.6);
+    let view = View::look_at(
+        CameraModel::pinhole(64, 48, 80.0, 80.0, 31.5, 23.5),
+        [2.0, -2.0, 4.0],
+        [2.0, -2.0, 0.2],
+    );
+    let l = light(30.0, 40.0, 0.2);
+    let (az, el) = (30f64.to_radians(), 40f64.to_radians());
+    let to_light = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+    let n = [-a, -b, 1.0];
+    let n_dot_l = (0..3).map(|k| n[k] * to_light[k]).sum::<f64>() / (a * a + b * b + 1.0).sqrt();
+    let want = 0.6 * (0.2 + 0.8 * n_dot_l.max(0.0));
+    for shadows in [false, true] {
+        let r = render(&g, &l, &view, &RenderOptions { shadows, ..PLAIN });
+        assert!(r.mask.iter().all(|&m| m == 255));
+        for px in &r.radiance {
+            assert!((f64::from(*px) - want).abs() < 1e-5, "{px} vs {want}");
+        }
+    }
+}
+
+/// Flat ground at z = 0 with a 0.4 m square box of height 0.3 m centred at (2, -2).
+fn box_grid() -> HeightGrid {
+    grid(201, 201, 0.02, |x, y| {
+        if (x - 2.0).abs() <= 0.2 + 1e-9 && (y + 2.0).abs() <= 0.2 + 1e-9 {
+            0.3
+        } else {
+            0.0
+        }
+    })
+}
+
+fn project(view: &View, p: [f64; 3]) -> [f64; 2] {
+    let pc = view.ground_from_camera.inverse().transform_point(p);
+    view.camera.project(pc).expect("in front")
+}
+
+#[test]
+fn box_depths_shadow_and_marker() {
+    let view = View::look_at(
+        CameraModel::pinhole(200, 200, 150.0, 150.0, 99.5, 99.5),
+        [2.0, -2.0, 5.0],
+        [2.0, -2.0, 0.0],
+    );
+    let g = heightfield(box_grid(), 0.5);
+    let l = light(0.0, 45.0, 0.25);
+    let r = render(
+        &g,
+        &l,
+        &view,
+        &RenderOptions {
+            shadows: true,
+            ..PLAIN
+        },
+    );
+    // The box top is 0.3 m closer than the ground.
+    assert!((f64::from(at(&r, &r.depth, project(&view, [2.0, -2.0, 0.3]))) - 4.7).abs() < 1e-3);
+    assert!((f64::from(at(&r, &r.depth, project(&view, [1.0, -1.0, 0.0]))) - 5.0).abs() < 1e-3);
+    // Light from +x at 45°: the shadow covers 0.3 m of ground on the -x side only.
+    let lit = 0.5 * (0.25 + 0.75 * 45f64.to_radians().sin());
+    let shadowed = 0.5 * 0.25;
+    for (x, want) in [
+        (1.65, shadowed),
+        (1.55, shadowed),
+        (1.35, lit),
+        (2.4, lit),
+        (2.0 + 0.3, lit),
+    ] {
+        let got = f64::from(at(&r, &r.radiance, project(&view, [x, -2.0, 0.0])));
+        assert!(
+            (got - want).abs() < 1e-5,
+            "ground at x = {x}: {got} vs {want}"
+        );
+    }
+    // Without shadows the same ground is lit.
+    let r = render(&g, &l, &view, &PLAIN);
+    assert!((f64::from(at(&r, &r.radiance, project(&view, [1.65, -2.0, 0.0]))) - lit).abs() < 1e-5);
+}
+
+#[test]
+fn marker_lands_where_camera_model_projects_it_with_real_distortion() {
+    // Dark ground (z = 0.05 x) with a bright 6 cm square where pixel (90, 400) of the real,
+    // strongly distorted camera looks, far from the principal point.
+    let cam = real_camera();
+    let view = View::look_at(cam.clone(), [0.5, -3.5, 1.8], [2.0, -1.8, 0.1]);
+    let (x, y) = cam.unproject(90.0, 400.0);
+    let d = view.ground_from_camera.rotate([x, y, 1.0]);
+    let e = view.ground_from_camera.translation_m;
+    let t = (0.05 * e[0] - e[2]) / (d[2] - 0.05 * d[0]);
+    let centre = [e[0] + t * d[0], e[1] + t * d[1]];
+    let alb = albedo(401, 401, 0.01, |x, y| {
+        if (x - centre[0]).abs() < 0.03 && (y - centre[1]).abs() < 0.03 {
+            0.9
+        } else {
+            0.1
+        }
+    });
+    let g = Geometry::Heightfield {
+        grid: grid(201, 201, 0.02, |x, _| 0.05 * x),
+        albedo: alb,
+    };
+    let opts = RenderOptions {
+        distort: true,
+        shadows: false,
+        supersample: 3,
+    };
+    let r = render(&g, &light(0.0, 90.0, 1.0), &view, &opts);
+    let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
+    for v in 0..r.height {
+        for u in 0..r.width {
+            let w = (f64::from(r.radiance[v * r.width + u]) - 0.1).max(0.0);
+            sw += w;
+            su += w * u as f64;
+            sv += w * v as f64;
+        }
+    }
+    let want = project(&view, [centre[0], centre[1], 0.05 * centre[0]]);
+    let got = [su / sw, sv / sw];
+    // The marker is far from the principal point, so distortion moves it by many pixels.
+    let pinhole = view
+        .camera
+        .undistorted()
+        .project(view.ground_from_camera.inverse().transform_point([
+            centre[0],
+            centre[1],
+            0.05 * centre[0],
+        ]))
+        .unwrap();
+    assert!(
+        (pinhole[0] - want[0]).hypot(pinhole[1] - want[1]) > 5.0,
+        "{pinhole:?} vs {want:?}"
+    );
+    assert!(
+        (got[0] - want[0]).hypot(got[1] - want[1]) < 0.5,
+        "centroid {got:?} vs projected {want:?}"
+    );
+}
+
+/// Bilinear sample of a row-major image; `None` outside or next to a NaN.
+fn bilinear(img: &[f32], w: usize, h: usize, x: f64, y: f64) -> Option<f64> {
+    if x < 0.0 || y < 0.0 || x > (w - 1) as f64 || y > (h - 1) as f64 {
+        return None;
+    }
+    let (c0, r0) = (x.floor() as usize, y.floor() as usize);
+    let (c1, r1) = ((c0 + 1).min(w - 1), (r0 + 1).min(h - 1));
+    let (fx, fy) = (x - c0 as f64, y - r0 as f64);
+    let p = |c: usize, r: usize| f64::from(img[r * w + c]);
+    let v = (p(c0, r0) * (1.0 - fx) + p(c1, r0) * fx) * (1.0 - fy)
+        + (p(c0, r1) * (1.0 - fx) + p(c1, r1) * fx) * fy;
+    v.is_finite().then_some(v)
+}
+
+#[test]
+fn distorted_render_equals_undistorted_render_remapped() {
+    let g = Geometry::Heightfield {
+        grid: grid(301, 301, 0.02, |x, y| {
+            0.1 * (x * 1.7).sin() * (y * 1.3).cos()
+        }),
+        albedo: albedo(301, 301, 0.02, |x, y| {
+            0.5 + 0.3 * (x * 3.0).sin() * (y * 2.0).cos()
+        }),
+    };
+    let cam = real_camera();
+    let view = View::look_at(cam.clone(), [3.0, -6.5, 2.0], [3.0, -3.0, 0.0]);
+    let scene = Scene::new(&g);
+    let l = light(120.0, 50.0, 0.3);
+    let raw = scene.render(
+        &l,
+        &view,
+        &RenderOptions {
+            distort: true,
+            ..PLAIN
+        },
+    );
+    let und = scene.render(&l, &view, &PLAIN);
+    let (mut n, mut err_rad, mut err_depth) = (0usize, 0.0, 0.0f64);
+    for v in 0..raw.height {
+        for u in 0..raw.width {
+            let i = v * raw.width + u;
+            if raw.mask[i] != 255 {
+                continue;
+            }
+            let (x, y) = cam.unproject(u as f64, v as f64);
+            let (qx, qy) = (cam.fx * x + cam.cx, cam.fy * y + cam.cy);
+            let (Some(rad), Some(depth)) = (
+                bilinear(&und.radiance, und.width, und.height, qx, qy),
+                bilinear(&und.depth, und.width, und.height, qx, qy),
+            ) else {
+                continue;
+            };
+            n += 1;
+            err_rad += (f64::from(raw.radiance[i]) - rad).abs();
+            err_depth = err_depth.max((f64::from(raw.depth[i]) - depth).abs() / depth);
+        }
+    }
+    assert!(n > 100_000, "compared {n} pixels");
+    let mean = err_rad / n as f64;
+    assert!(mean < 0.005, "mean radiance difference {mean}");
+    assert!(
+        err_depth < 0.01,
+        "max relative depth difference {err_depth}"
+    );
+}
+
+/// The grid as a mesh with the renderer's NW–SE split.
+fn as_mesh(g: &HeightGrid, a: f32) -> TriMeshF32 {
+    let (w, h) = (g.width, g.height);
+    let positions = (0..w * h)
+        .map(|i| {
+            [
+                ((i % w) as f64 * g.cell_m) as f32,
+                (-((i / w) as f64) * g.cell_m) as f32,
+                g.z[i],
+            ]
+        })
+        .collect();
+    let mut triangles = Vec::new();
+    for r in 0..h - 1 {
+        for c in 0..w - 1 {
+            let (nw, ne, sw, se) = (
+                (r * w + c) as u32,
+                (r * w + c + 1) as u32,
+                ((r + 1) * w + c) as u32,
+                ((r + 1) * w + c + 1) as u32,
+            );
+            triangles.push([nw, ne, se]);
+            triangles.push([nw, sw, se]); // opposite winding: normals are per face, turned to the ray
+        }
+    }
+    TriMeshF32 {
+        origin_m: [0.0; 3],
+        positions,
+        triangles,
+        albedo: vec![a; w * h],
+    }
+}
+
+#[test]
+fn mesh_and_heightfield_renders_agree() {
+    let hf = heightfield(box_grid(), 0.4);
+    let mesh = Geometry::Mesh(as_mesh(&box_grid(), 0.4));
+    let view = View::look_at(
+        CameraModel::pinhole(160, 120, 120.0, 120.0, 79.5, 59.5),
+        [0.3, -3.8, 1.5],
+        [2.0, -2.0, 0.1],
+    );
+    let l = light(200.0, 35.0, 0.2);
+    let opts = RenderOptions {
+        shadows: true,
+        ..PLAIN
+    };
+    let a = render(&hf, &l, &view, &opts);
+    let b = render(&mesh, &l, &view, &opts);
+    let mut differ = 0;
+    for i in 0..a.mask.len() {
+        if a.mask[i] != b.mask[i] {
+            differ += 1;
+        } else if a.mask[i] == 255 {
+            assert!((a.depth[i] - b.depth[i]).abs() < 1e-4, "depth at {i}");
+            if (a.radiance[i] - b.radiance[i]).abs() > 1e-4 {
+                differ += 1;
+            }
+        }
+    }
+    assert!(a.mask.iter().filter(|&&m| m == 255).count() > 10_000);
+    assert!(differ <= a.mask.len() / 500, "{differ} pixels differ");
+}
+
+#[test]
+fn output_is_identical_for_one_and_two_threads() {
+    let g = Geometry::Heightfield {
+        grid: grid(151, 151, 0.03, |x, y| {
+            0.2 * (x * 2.1).sin() * (y * 1.7).cos() + 0.05 * (x * 9.0 + y * 7.0).sin()
+        }),
+        albedo: albedo(301, 301, 0.015, |x, y| {
+            0.4 + 0.2 * (x * 13.0).sin() * (y * 11.0).cos()
+        }),
+    };
+    let view = View::look_at(real_camera(), [2.2, -5.5, 1.2], [2.2, -2.0, 0.0]);
+    let opts = RenderOptions {
+        distort: true,
+        shadows: true,
+        supersample: 2,
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| render(&g, &light(60.0, 25.0, 0.2), &view, &opts))
+    };
+    let (one, two) = (run(1), run(2));
+    let bits = |r: &Rendered| -> Vec<u32> {
+        r.radiance
+            .iter()
+            .chain(&r.depth)
+            .map(|v| v.to_bits())
+            .collect()
+    };
+    assert_eq!(bits(&one), bits(&two));
+    assert_eq!(one.mask, two.mask);
+    assert!(
+        one.mask.contains(&255) && one.mask.contains(&0),
+        "sky and terrain both in view"
+    );
+}
+
+#[test]
+fn supersampling_box_filters_an_albedo_edge() {
+    // Albedo 0 for x < 2, 1 for x >= 2 on 5 mm cells, seen from above with 0.02 m pixels;
+    // pixel column 50 is centred on the edge. Its 4 x 4 samples lie at x = 2 ± 2.5 mm and
+    // 2 ± 7.5 mm, where the bilinear albedo is 0, 0.5, 1 and 1: the box filter gives 0.625.
+    let alb = albedo(
+        801,
+        11,
+        0.005,
+        |x, _| if x < 2.0 - 1e-9 { 0.0 } else { 1.0 },
+    );
+    let alb = AlbedoGrid {
+        origin_m: [0.0, 0.0],
+        ..alb
+    };
+    let g = Geometry::Heightfield {
+        grid: grid(201, 201, 0.02, |_, _| 0.0),
+        albedo: alb,
+    };
+    let view = View::look_at(
+        CameraModel::pinhole(101, 9, 100.0, 100.0, 50.0, 4.0),
+        [2.0, -0.025, 2.0],
+        [2.0, -0.025, 0.0],
+    );
+    let l = light(0.0, 90.0, 1.0);
+    let one = render(&g, &l, &view, &PLAIN);
+    let four = render(
+        &g,
+        &l,
+        &view,
+        &RenderOptions {
+            supersample: 4,
+            ..PLAIN
+        },
+    );
+    let row = 4 * 101;
+    assert!(four.radiance[row + 30] < 1e-6 && (four.radiance[row + 70] - 1.0).abs() < 1e-6);
+    assert!(
+        (four.radiance[row + 50] - 0.625).abs() < 1e-4,
+        "edge pixel {}",
+        four.radiance[row + 50]
+    );
+    assert!(one.radiance[row + 50] < 1e-6 || one.radiance[row + 50] > 1.0 - 1e-6);
+    let bits = |v: &[f32]| v.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+    assert_eq!(
+        bits(&one.depth),
+        bits(&four.depth),
+        "depth comes from the pixel centre"
+    );
+    assert!(one.depth[row + 50] == 2.0, "seen from 2 m");
+}
+
+#[test]
+fn tracer_hits_planes_from_above_and_below_and_respects_holes() {
+    let (a, b, c) = (0.2, 0.1, 0.5);
+    let mut g = grid(51, 41, 0.1, |x, y| a * x + b * y + c);
+    let tracer = HeightfieldTracer::new(&g);
+    let z = |x: f64, y: f64| a * x + b * y + c;
+    let down = tracer
+        .trace([1.23, -2.34, 10.0], [0.0, 0.0, -1.0], 100.0)
+        .expect("hit from above");
+    assert!(
+        (down.point[2] - z(1.23, -2.34)).abs() < 1e-6
+            && (down.t - (10.0 - z(1.23, -2.34))).abs() < 1e-6
+    );
+    let n = [-a, -b, 1.0].map(|v| v / (a * a + b * b + 1.0f64).sqrt());
+    assert!(
+        (0..3).all(|k| (down.normal[k] - n[k]).abs() < 1e-6),
+        "{:?}",
+        down.normal
+    );
+    let up = tracer
+        .trace([3.01, -1.5, -5.0], [0.1, 0.05, 1.0], 100.0)
+        .expect("hit from below");
+    assert!((up.point[2] - z(up.point[0], up.point[1])).abs() < 1e-6);
+    assert!(
+        tracer
+            .trace([1.23, -2.34, 10.0], [0.0, 0.0, -1.0], 5.0)
+            .is_none(),
+        "t_max is respected"
+    );
+    assert!(
+        tracer
+            .trace([9.0, -2.0, 10.0], [0.0, 0.0, -1.0], 100.0)
+            .is_none(),
+        "outside the grid"
+    );
+    // A hole at cell (12, 23) removes the six triangles around it and nothing else.
+    g.z[23 * 51 + 12] = f32::NAN;
+    let holed = HeightfieldTracer::new(&g);
+    assert!(holed
+        .trace([1.2, -2.3, 10.0], [0.0, 0.0, -1.0], 100.0)
+        .is_none());
+    assert!(holed
+        .trace([1.5, -2.3, 10.0], [0.0, 0.0, -1.0], 100.0)
+        .is_some());
+    fn is_sync<T: Sync + Send>(_: &T) {}
+    is_sync(&holed);
+}
