@@ -2,7 +2,8 @@
 //!
 //! Pixel convention: `(0, 0)` is the **centre** of the top-left pixel, as in OpenCV; x grows to
 //! the right, y downwards. Every ingest reader converts its source's convention to this one
-//! (Bouguet and COLMAP differ, see `campaign.md`). With normalised coordinates `x = X/Z`,
+//! (COLMAP differs by half a pixel; Bouguet's `cc` already uses this convention, see
+//! `campaign.md`). With normalised coordinates `x = X/Z`,
 //! `y = Y/Z` and `r² = x² + y²`:
 //!
 //! ```text
