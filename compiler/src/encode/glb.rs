@@ -40,7 +40,10 @@ fn pad4(buf: &mut Vec<u8>, fill: u8) {
 /// Encodes the mesh as GLB bytes.
 pub fn encode(m: &GlbMesh) -> Result<Vec<u8>, EncodeError> {
     let n = m.positions.len();
-    if m.normals.len() != n || (!m.uvs.is_empty() && m.uvs.len() != n) || !m.indices.len().is_multiple_of(3) {
+    if m.normals.len() != n
+        || (!m.uvs.is_empty() && m.uvs.len() != n)
+        || !m.indices.len().is_multiple_of(3)
+    {
         return Err(EncodeError::new(
             "GLB",
             "attribute counts differ or indices not a triangle list",
