@@ -53,13 +53,28 @@ pub enum Command {
         #[arg(long, value_enum)]
         profile: Option<Profile>,
     },
-    /// Compile a survey campaign into a release (`--check`: parse and inventory only).
+    /// Compile a survey campaign into a new release (`--check`: parse and inventory only).
     Compile {
         /// The campaign folder (or its campaign.toml).
         campaign: PathBuf,
+        /// The database to write into (created if absent).
+        #[arg(long, required_unless_present = "check")]
+        db: Option<PathBuf>,
+        /// Release `name@version` (default: the campaign name @ 1.0.0).
+        #[arg(long, value_name = "NAME@VERSION")]
+        release: Option<String>,
         /// Parse every referenced file and print an inventory; write nothing.
         #[arg(long)]
         check: bool,
+    },
+    /// Run the main job on the checked-in demo campaign (`corpus/demo`) and say where the outputs are.
+    Demo {
+        /// The demo campaign folder.
+        #[arg(long, default_value = "corpus/demo")]
+        campaign: PathBuf,
+        /// Output folder (the database goes to `<out>/db`).
+        #[arg(long, default_value = "out/demo")]
+        out: PathBuf,
     },
     /// Synthetic campaigns with ground truth and hidden effects.
     Corpus {

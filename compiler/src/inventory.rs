@@ -180,7 +180,7 @@ pub fn inventory(c: &Campaign, limits: &Limits) -> Result<Inventory> {
             "auto".into(),
             Box::new(move || {
                 let m = calib_opencv::read_any_calibration(&root.join(&cam.calibration))?;
-                Ok(serde_json::to_value(&m).map_err(|e| IngestError::invalid(e.to_string()))?)
+                serde_json::to_value(&m).map_err(|e| IngestError::invalid(e.to_string()))
             }),
         ));
     }

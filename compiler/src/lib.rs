@@ -5,6 +5,7 @@
 //! format into typed data, the stages register, grid, align and encode it, and the result is
 //! written into the object store through `regolith_reader::write`.
 
+pub mod compile;
 pub mod encode;
 pub mod error;
 pub mod export;

@@ -5,5 +5,6 @@
 //! model shared with the corpus generator (which applies hidden effects to "real" images) and
 //! with the gap workflow (which fits them).
 
+pub mod metrics;
 pub mod render;
 pub mod sensor;

@@ -1,36 +1,108 @@
-//! `regolith compile CAMPAIGN --check`: load and resolve the campaign, parse every file it
-//! references and print the inventory; nothing is written.
+//! `regolith compile CAMPAIGN --db DB [--release NAME@VERSION]`: compile a campaign into a new
+//! release, with a progress bar on a terminal and a one-line summary per stage otherwise;
+//! `--check` parses every referenced file and prints an inventory without writing anything.
 
+use std::io::IsTerminal;
 use std::path::Path;
 
+use indicatif::{ProgressBar, ProgressStyle};
+use regolith_compiler::compile;
 use regolith_compiler::ingest::campaign;
 use regolith_compiler::inventory;
 use regolith_format::limits::Limits;
+use regolith_reader::Writer;
 
 use super::{human_bytes, print_json};
 use crate::Outcome;
 
-pub fn run(path: &Path, check: bool, json: bool) -> anyhow::Result<Outcome> {
+pub fn run(
+    path: &Path,
+    check: bool,
+    db: Option<&Path>,
+    release: Option<&str>,
+    json: bool,
+) -> anyhow::Result<Outcome> {
     let c = campaign::load(path)?;
-    if !check {
-        anyhow::bail!("only `regolith compile --check` is available in this version");
-    }
-    let inv = inventory::inventory(&c, &Limits::default())?;
-    if json {
-        print_json(&inv)?;
+    if check {
+        let inv = inventory::inventory(&c, &Limits::default())?;
+        if json {
+            print_json(&inv)?;
+            return Ok(Outcome::Ok);
+        }
+        println!("campaign {} — {}", inv.campaign, inv.counts);
+        for f in &inv.files {
+            println!(
+                "  {:<44} {:<15} {:<16} {:>10}  {}",
+                f.path,
+                f.role,
+                f.format,
+                human_bytes(f.bytes),
+                f.summary
+            );
+        }
+        println!("all {} files parsed; nothing written", inv.files.len());
         return Ok(Outcome::Ok);
     }
-    println!("campaign {} — {}", inv.campaign, inv.counts);
-    for f in &inv.files {
+    let Some(db) = db else {
+        anyhow::bail!("`regolith compile` needs --db DB (or --check to only parse the campaign)");
+    };
+    let writer = Writer::create_or_open(db)?;
+    let tty = std::io::stderr().is_terminal() && !json;
+    let bar = if tty {
+        ProgressBar::new(1000)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {elapsed:>4} [{bar:30}] {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let progress = |stage: &str, f: f64| {
+        if !tty && !json {
+            eprintln!("[{:>3.0}%] {stage}", f * 100.0);
+        }
+        bar.set_message(stage.to_string());
+        bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+    };
+    let opts = compile::options(&c, release);
+    let summary = compile::compile(&c, &writer, &opts, &progress)?;
+    bar.finish_and_clear();
+    if json {
+        print_json(&summary)?;
+        return Ok(Outcome::Ok);
+    }
+    println!(
+        "release {} id {}{}",
+        summary.release,
+        summary.id,
+        if summary.cached {
+            " (unchanged inputs: cached)"
+        } else {
+            ""
+        }
+    );
+    for (stage, s) in &summary.stage_seconds {
+        println!("  {stage:<20} {s:>7.2} s");
+    }
+    for d in &summary.dem {
         println!(
-            "  {:<44} {:<15} {:<16} {:>10}  {}",
-            f.path,
-            f.role,
-            f.format,
-            human_bytes(f.bytes),
-            f.summary
+            "  {:<24} area {:.3} m², volume {:.4} m³, {} points, {} triangles",
+            d["entry"].as_str().unwrap_or(""),
+            d["area_m2"].as_f64().unwrap_or(0.0),
+            d["volume_m3"].as_f64().unwrap_or(0.0),
+            d["points"],
+            d["triangles"]
         );
     }
-    println!("all {} files parsed; nothing written", inv.files.len());
+    for w in &summary.warnings {
+        println!("  warning: {}", w["message"].as_str().unwrap_or(""));
+    }
+    println!(
+        "{} entries; `regolith inspect {} {}` for details",
+        summary.entries.len(),
+        db.display(),
+        summary.release
+    );
     Ok(Outcome::Ok)
 }

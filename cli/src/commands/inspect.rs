@@ -79,7 +79,7 @@ fn describe(e: &Entry) -> String {
     let m = &e.meta;
     match e.kind.as_str() {
         kinds::HEIGHTFIELD => format!(
-            "{}x{} cells of {} m, z {:?} m, {} valid",
+            "{}x{} cells of {} m, z {} m, {} valid",
             m["width"], m["height"], m["cell_m"], m["z_range_m"], m["valid_cells"]
         ),
         kinds::MESH => format!(

@@ -2,6 +2,7 @@
 
 mod compile;
 mod corpus;
+mod demo;
 mod export;
 mod gc;
 mod inspect;
@@ -25,8 +26,20 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             profile,
         } => export::run(db, release, entry, to, *profile, cli.json),
         Command::Gc { db } => gc::run(db, cli.json),
-        Command::Compile { campaign, check } => compile::run(campaign, *check, cli.json),
+        Command::Compile {
+            campaign,
+            db,
+            release,
+            check,
+        } => compile::run(
+            campaign,
+            *check,
+            db.as_deref(),
+            release.as_deref(),
+            cli.json,
+        ),
         Command::Corpus { action } => corpus::run(action, cli.json),
+        Command::Demo { campaign, out } => demo::run(campaign, out, cli.json),
     }
 }
 

@@ -1,0 +1,607 @@
+//! `regolith compile`: the pipeline from a resolved campaign to a committed release.
+//!
+//! The pipeline is plain Rust (house style): ground control → per laser terrain
+//! `register.tiepoints` → `register.icp` → `merge.clean` → `dem.tin` → `dem.raster` → encode
+//! heightfields, textures and meshes → `captures.build` → reports → release. Every stage that
+//! ran is recorded with its version and params in the release plan. Nothing time- or
+//! machine-dependent enters an object: timings go to the returned summary only.
+//!
+//! Whole-compile cache: the key is the SHA-256 of the compiler version, the options and every
+//! input file's hash; `refs/cache/<key>` remembers the release it produced, so an unchanged
+//! recompile only rehashes the inputs and re-tags the release.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+use regolith_format::kinds::{self, media, roles, CameraMeta, LodMeta, MeshMeta, TextureMeta};
+use regolith_format::manifest::{new_release, CampaignRef, InputFile, PlanStep, Producer};
+use regolith_format::{Entry, FileRef, ObjectId, Release, Tile};
+use regolith_reader::{ReaderError, Writer};
+use serde::Serialize;
+use serde_json::{json, Value};
+
+use crate::encode::{glb, heightfield, png, EncodeError};
+use crate::error::IngestError;
+use crate::ingest::campaign::{Campaign, Registration, Terrain, TerrainSource, Texture};
+use crate::ingest::types::{NamedPoint, PointCloud};
+use crate::ingest::{markers, sop_dat, tiepoints, vicon_csv};
+use crate::inventory::load_scan;
+use crate::stage::{Stage, StageCx, StageError};
+use crate::stages::captures::BuildCaptures;
+use crate::stages::dem_raster::{DemRaster, Raster};
+use crate::stages::dem_tin::DemTin;
+use crate::stages::merge_clean::{MergeClean, MergeScan};
+use crate::stages::register_icp::{IcpInput, IcpScan, RegisterIcp};
+use crate::stages::register_tiepoints::{RegisterTiepoints, ScanTiepoints, TiepointInput};
+
+/// Anything that stops a compile. The database is left as it was.
+#[derive(Debug, thiserror::Error)]
+pub enum CompileError {
+    /// A raw input is bad.
+    #[error(transparent)]
+    Ingest(#[from] IngestError),
+    /// A stage failed.
+    #[error(transparent)]
+    Stage(#[from] StageError),
+    /// Encoding failed.
+    #[error(transparent)]
+    Encode(#[from] EncodeError),
+    /// Writing the database failed.
+    #[error(transparent)]
+    Store(#[from] ReaderError),
+}
+
+/// Compile options.
+#[derive(Debug, Clone)]
+pub struct CompileOptions {
+    /// Release name (default: the campaign name).
+    pub name: String,
+    /// Release version.
+    pub version: String,
+    /// Mesh levels of detail (each halves the vertex spacing of the previous).
+    pub lods: u32,
+    /// Input limits.
+    pub limits: regolith_format::limits::Limits,
+}
+
+/// What `compile --json` prints.
+#[derive(Debug, Clone, Serialize)]
+pub struct CompileSummary {
+    /// `name@version`.
+    pub release: String,
+    /// Release id.
+    pub id: String,
+    /// Entry names.
+    pub entries: Vec<String>,
+    /// Registration figures.
+    pub registration: Value,
+    /// Alignment figures per reconstruction.
+    pub alignment: Value,
+    /// DEM statistics per raster.
+    pub dem: Vec<Value>,
+    /// Structured warnings.
+    pub warnings: Vec<Value>,
+    /// True when the whole-compile cache was hit.
+    pub cached: bool,
+    /// Wall time per stage (not stored anywhere).
+    pub stage_seconds: Vec<(String, f64)>,
+}
+
+struct Ctx<'a> {
+    writer: &'a Writer,
+    cx: StageCx,
+    plan: Vec<PlanStep>,
+    entries: Vec<Entry>,
+    times: Vec<(String, f64)>,
+    clock: Instant,
+}
+
+impl Ctx<'_> {
+    fn lap(&mut self, name: &str) {
+        self.times
+            .push((name.to_string(), self.clock.elapsed().as_secs_f64()));
+        self.clock = Instant::now();
+    }
+    fn record<S: Stage>(&mut self, s: &S) {
+        if !self
+            .plan
+            .iter()
+            .any(|p| p.stage == S::NAME && p.params == s.params())
+        {
+            self.plan.push(PlanStep {
+                stage: S::NAME.into(),
+                version: S::VERSION,
+                params: s.params(),
+            });
+        }
+    }
+    fn put(&self, bytes: &[u8], media_type: &str) -> Result<FileRef, CompileError> {
+        Ok(self.writer.put(bytes, media_type)?)
+    }
+    fn report(&mut self, name: &str, report: &str, body: &Value) -> Result<(), CompileError> {
+        let f = self.writer.put_json(body)?;
+        self.entries.push(Entry {
+            name: format!("reports/{name}"),
+            kind: kinds::REPORT.into(),
+            meta: json!({"report": report}),
+            files: [(roles::REPORT.to_string(), f)].into(),
+            tiles: Vec::new(),
+        });
+        Ok(())
+    }
+}
+
+fn hash_inputs(c: &Campaign) -> Result<Vec<InputFile>, CompileError> {
+    let mut files = c.input_files();
+    files.push("campaign.toml".into());
+    files.sort();
+    files.dedup();
+    files
+        .iter()
+        .map(|rel| {
+            let bytes = std::fs::read(c.root.join(rel))
+                .map_err(|e| IngestError::Io(e).in_file(c.root.join(rel)))?;
+            Ok(InputFile {
+                path: rel.to_string_lossy().replace('\\', "/"),
+                sha256: ObjectId::of_bytes(&bytes),
+                size: bytes.len() as u64,
+            })
+        })
+        .collect()
+}
+
+/// Ball centres of the ground markers (mean over valid frames).
+fn ground_control(
+    c: &Campaign,
+    cx: &StageCx,
+    limits: &regolith_format::limits::Limits,
+) -> Result<(Vec<NamedPoint>, Value), CompileError> {
+    let traj = vicon_csv::read_path(&c.root.join(&c.ground_markers), limits)?;
+    let (stats, warnings) = markers::static_markers(&traj, 10);
+    for w in warnings {
+        cx.reporter
+            .warn("ground.markers", "marker-few-frames", format!("{w:?}"));
+    }
+    let report = json!(stats
+        .iter()
+        .map(|m| json!({"marker": m.name, "mean_m": m.mean, "std_m": m.std, "rms_3d_m": m.rms_3d, "frames": m.frames}))
+        .collect::<Vec<_>>());
+    Ok((
+        stats
+            .into_iter()
+            .map(|m| NamedPoint {
+                name: m.name,
+                xyz: m.mean,
+            })
+            .collect(),
+        report,
+    ))
+}
+
+fn cell_label(cell: f64) -> String {
+    format!("{cell}")
+}
+
+/// 8-bit texture from linear reflectance: the 1st–99th percentile range stretched to 0–255.
+fn reflectance_png(r: &Raster) -> Result<Option<Vec<u8>>, CompileError> {
+    let Some(refl) = &r.reflectance else {
+        return Ok(None);
+    };
+    let mut v: Vec<f32> = refl.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return Ok(None);
+    }
+    v.sort_by(f32::total_cmp);
+    let lo = v[v.len() / 100];
+    let hi = v[(v.len() * 99) / 100].max(lo + 1e-6);
+    let filled = heightfield::fill_holes(refl, r.cols, r.rows);
+    let px: Vec<u8> = filled
+        .iter()
+        .map(|x| (((x - lo) / (hi - lo)).clamp(0.0, 1.0) * 255.0).round() as u8)
+        .collect();
+    Ok(Some(png::grey8(r.cols as u32, r.rows as u32, &px)?))
+}
+
+fn laser_terrain(
+    ctx: &mut Ctx<'_>,
+    c: &Campaign,
+    t: &Terrain,
+    scans: &[usize],
+    markers: &[NamedPoint],
+    opts: &CompileOptions,
+    dem_out: &mut Vec<Value>,
+) -> Result<Value, CompileError> {
+    let mut clouds: Vec<(String, PointCloud, ScanTiepoints)> = Vec::new();
+    for &i in scans {
+        let Some(s) = c.scans.get(i) else { continue };
+        let cloud = load_scan(&c.root, s, &opts.limits)?;
+        let tp = match &s.registration {
+            Registration::Tiepoints(p) => ScanTiepoints {
+                scan: s.name.clone(),
+                tiepoints: tiepoints::read_path(&c.root.join(p), &opts.limits)?,
+                sop: None,
+            },
+            Registration::Sop(p) => ScanTiepoints {
+                scan: s.name.clone(),
+                tiepoints: Vec::new(),
+                sop: Some(sop_dat::read_path(&c.root.join(p), &opts.limits)?),
+            },
+        };
+        clouds.push((s.name.clone(), cloud, tp));
+    }
+    ctx.lap("ingest.scans");
+    let reg = RegisterTiepoints::default();
+    let input = TiepointInput {
+        markers: markers.to_vec(),
+        scans: clouds.iter().map(|c| c.2.clone()).collect(),
+    };
+    let regs = reg.run(&ctx.cx, &input)?;
+    ctx.record(&reg);
+    ctx.lap(RegisterTiepoints::NAME);
+    let icp = RegisterIcp::default();
+    let icp_in = IcpInput {
+        markers: markers.to_vec(),
+        scans: clouds
+            .iter()
+            .zip(&regs)
+            .map(|((name, cloud, tp), r)| IcpScan {
+                name: name.clone(),
+                points: cloud.points.clone(),
+                tiepoints: tp.tiepoints.clone(),
+                ground_from_socs: r.ground_from_socs,
+            })
+            .collect(),
+    };
+    let icp_out = icp.run(&ctx.cx, &icp_in)?;
+    drop(icp_in);
+    ctx.record(&icp);
+    ctx.lap(RegisterIcp::NAME);
+    let merge = MergeClean::default();
+    let merge_in: Vec<MergeScan> = clouds
+        .into_iter()
+        .zip(&icp_out.scans)
+        .map(|((name, cloud, _), r)| MergeScan {
+            name,
+            cloud,
+            ground_from_socs: r.ground_from_socs,
+        })
+        .collect();
+    let merged = merge.run(&ctx.cx, &merge_in)?;
+    drop(merge_in);
+    ctx.record(&merge);
+    ctx.lap(MergeClean::NAME);
+    let tin = DemTin.run(&ctx.cx, &merged)?;
+    ctx.record(&DemTin);
+    ctx.lap(DemTin::NAME);
+    let raster = DemRaster::new(
+        t.raster_m.clone(),
+        t.bounds_m,
+        crate::stages::dem_raster::MaxEdge::Absolute(0.1),
+        -0.1,
+        1 << 28,
+    )?;
+    let rasters = raster.run(&ctx.cx, &tin)?;
+    ctx.record(&raster);
+    ctx.lap(DemRaster::NAME);
+    for r in &rasters {
+        let name = format!("{}/{}", t.name, cell_label(r.cell_m));
+        encode_raster(
+            ctx,
+            &name,
+            &t.name,
+            r,
+            if t.texture == Texture::Reflectance {
+                reflectance_png(r)?
+            } else {
+                None
+            },
+            opts.lods,
+        )?;
+        dem_out.push(json!({"entry": name, "cell_m": r.cell_m, "area_m2": r.stats.surface_area_m2, "volume_m3": r.stats.volume_m3,
+            "points": r.stats.points, "triangles": r.stats.triangles, "stats": r.stats}));
+    }
+    ctx.lap("encode.terrain");
+    Ok(json!({
+        "terrain": t.name,
+        "scans": regs.iter().zip(&icp_out.scans).map(|(r, i)| json!({
+            "name": r.scan, "rms_m": r.rms_m, "max_m": r.max_m, "n_tiepoints": r.n_tiepoints, "method": r.method,
+            "rejected": r.rejected, "residuals": r.residuals, "ground_from_socs": r.ground_from_socs,
+            "icp": i,
+        })).collect::<Vec<_>>(),
+        "icp": {"iterations": icp_out.iterations, "converged": icp_out.converged},
+        "merge": merged.stats,
+    }))
+}
+
+fn encode_raster(
+    ctx: &mut Ctx<'_>,
+    name: &str,
+    source: &str,
+    r: &Raster,
+    texture: Option<Vec<u8>>,
+    lods: u32,
+) -> Result<(), CompileError> {
+    let enc = heightfield::encode(&heightfield::GridInput {
+        origin_m: r.origin,
+        cell_m: r.cell_m,
+        width: r.cols as u32,
+        height: r.rows as u32,
+        heights: &r.heights,
+        site_origin_m: [0.0; 3],
+        source,
+    })?;
+    let bounds = enc.meta.bounds();
+    let tile = |files: BTreeMap<String, FileRef>| {
+        vec![Tile {
+            level: 0,
+            x: 0,
+            y: 0,
+            bounds_m: bounds,
+            files,
+        }]
+    };
+    let files: BTreeMap<String, FileRef> = [
+        (
+            roles::HEIGHT.to_string(),
+            ctx.put(&enc.height_png, media::PNG)?,
+        ),
+        (
+            roles::HEIGHT_F32.to_string(),
+            ctx.put(&enc.height_exr, media::EXR)?,
+        ),
+        (roles::MASK.to_string(), ctx.put(&enc.mask_png, media::PNG)?),
+    ]
+    .into();
+    ctx.entries.push(Entry {
+        name: name.into(),
+        kind: kinds::HEIGHTFIELD.into(),
+        meta: serde_json::to_value(&enc.meta)
+            .map_err(|e| StageError::new("encode.heightfield", e.to_string()))?,
+        files: BTreeMap::new(),
+        tiles: tile(files),
+    });
+    let texture_entry = format!("{name}/texture");
+    if let Some(png_bytes) = &texture {
+        let meta = TextureMeta {
+            grid_of: name.into(),
+            content: "reflectance".into(),
+            pixels_per_cell: 1,
+            bit_depth: 8,
+        };
+        let f = ctx.put(png_bytes, media::PNG)?;
+        ctx.entries.push(Entry {
+            name: texture_entry.clone(),
+            kind: kinds::TEXTURE.into(),
+            meta: json!(meta),
+            files: BTreeMap::new(),
+            tiles: tile([(roles::IMAGE.to_string(), f)].into()),
+        });
+    }
+    let filled = heightfield::fill_holes(&r.heights, r.cols, r.rows);
+    let mut lod_meta = Vec::new();
+    let mut lod_files = BTreeMap::new();
+    let mut origin = [0.0; 3];
+    for n in 0..lods.max(1) {
+        let (mut m, err) = glb::grid_mesh(&filled, r.cols, r.rows, r.origin, r.cell_m, 1 << n);
+        if m.positions.len() < 4 {
+            break;
+        }
+        m.texture_png.clone_from(&texture);
+        origin = m.local_origin_m;
+        lod_meta.push(LodMeta {
+            vertices: m.positions.len() as u64,
+            triangles: (m.indices.len() / 3) as u64,
+            max_height_error_m: err,
+        });
+        lod_files.insert(roles::lod(n), ctx.put(&glb::encode(&m)?, media::GLB)?);
+    }
+    let meta = MeshMeta {
+        frame: "ground".into(),
+        local_origin_m: origin,
+        lods: lod_meta,
+        texture: texture.as_ref().map(|_| texture_entry),
+    };
+    ctx.entries.push(Entry {
+        name: format!("{name}/mesh"),
+        kind: kinds::MESH.into(),
+        meta: json!(meta),
+        files: BTreeMap::new(),
+        tiles: tile(lod_files),
+    });
+    Ok(())
+}
+
+fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
+    let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "name": opts.name, "version": opts.version, "lods": opts.lods, "inputs": inputs});
+    ObjectId::of_bytes(regolith_format::canonical_json::to_string(&v).as_bytes()).to_hex()
+}
+
+/// Compiles a campaign into a new release of the database `writer` holds.
+pub fn compile(
+    c: &Campaign,
+    writer: &Writer,
+    opts: &CompileOptions,
+    progress: &dyn Fn(&str, f64),
+) -> Result<CompileSummary, CompileError> {
+    let start = Instant::now();
+    progress("hashing inputs", 0.0);
+    let inputs = hash_inputs(c)?;
+    let key = cache_key(&inputs, opts);
+    let db = writer.database();
+    if let Some(id) = db.read_ref(&format!("cache/{key}"))? {
+        if let Ok(view) = db.release_by_id(&id) {
+            let id = writer.commit(view.manifest.clone(), true)?;
+            let summary_body = view.report("reports/summary").unwrap_or(Value::Null);
+            return Ok(CompileSummary {
+                release: view.label(),
+                id: id.to_hex(),
+                entries: view.entries().iter().map(|e| e.name.clone()).collect(),
+                registration: summary_body["registration"].clone(),
+                alignment: summary_body["alignment"].clone(),
+                dem: summary_body["dem"].as_array().cloned().unwrap_or_default(),
+                warnings: summary_body["warnings"]
+                    .as_array()
+                    .cloned()
+                    .unwrap_or_default(),
+                cached: true,
+                stage_seconds: vec![("cache".into(), start.elapsed().as_secs_f64())],
+            });
+        }
+    }
+    let mut ctx = Ctx {
+        writer,
+        cx: StageCx::default(),
+        plan: Vec::new(),
+        entries: Vec::new(),
+        times: Vec::new(),
+        clock: Instant::now(),
+    };
+    ctx.lap("hash.inputs");
+    progress("ground control", 0.05);
+    let (markers, marker_report) = ground_control(c, &ctx.cx, &opts.limits)?;
+    ctx.lap("ground.markers");
+    let mut registration = Vec::new();
+    let mut dem = Vec::new();
+    let n_terrains = c.terrains.len().max(1) as f64;
+    for (k, t) in c.terrains.iter().enumerate() {
+        progress(
+            &format!("terrain {}", t.name),
+            0.1 + 0.7 * k as f64 / n_terrains,
+        );
+        match &t.from {
+            TerrainSource::Scans(idx) => registration.push(laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?),
+            TerrainSource::Reconstructions(_) => ctx.cx.reporter.warn(
+                "compile",
+                "terrain-skipped",
+                format!("terrain {:?}: reconstruction terrains need `sfm.align`, not in this compiler version; skipped", t.name),
+            ),
+        }
+    }
+    progress("captures", 0.85);
+    let caps = BuildCaptures {
+        limits: opts.limits,
+    };
+    let out = caps.run(&ctx.cx, c)?;
+    ctx.record(&caps);
+    ctx.lap(BuildCaptures::NAME);
+    for cam in &out.cameras {
+        let f = writer.put_json(&cam.model)?;
+        ctx.entries.push(Entry {
+            name: format!("cameras/{}", cam.name),
+            kind: kinds::CAMERA.into(),
+            meta: json!(CameraMeta {
+                model: cam.model.clone()
+            }),
+            files: [(roles::CALIBRATION.to_string(), f)].into(),
+            tiles: Vec::new(),
+        });
+    }
+    if let Some(rig) = &out.rig {
+        let mut rig = rig.clone();
+        rig.left = format!("cameras/{}", rig.left);
+        rig.right = format!("cameras/{}", rig.right);
+        let f = writer.put_json(&rig)?;
+        ctx.entries.push(Entry {
+            name: "rig".into(),
+            kind: kinds::RIG.into(),
+            meta: json!(rig),
+            files: [(roles::CALIBRATION.to_string(), f)].into(),
+            tiles: Vec::new(),
+        });
+    }
+    if !out.index.captures.is_empty() {
+        let files = [
+            (roles::MCAP.to_string(), writer.put(&out.mcap, media::MCAP)?),
+            (roles::INDEX.to_string(), writer.put_json(&out.index)?),
+        ]
+        .into();
+        ctx.entries.push(Entry {
+            name: "captures".into(),
+            kind: kinds::CAPTURES.into(),
+            meta: json!({"captures": out.index.captures.len()}),
+            files,
+            tiles: Vec::new(),
+        });
+    }
+    progress("reports", 0.95);
+    let warnings: Vec<Value> = ctx
+        .cx
+        .reporter
+        .warnings()
+        .iter()
+        .map(|w| json!(w))
+        .collect();
+    let registration = json!(registration);
+    ctx.report(
+        "registration",
+        "registration",
+        &json!({"ground_markers": marker_report, "terrains": registration}),
+    )?;
+    ctx.report("dem", "dem", &json!(dem))?;
+    ctx.report("captures", "captures", &out.report)?;
+    let summary_body =
+        json!({"registration": registration, "alignment": {}, "dem": dem, "warnings": warnings});
+    ctx.report("summary", "summary", &summary_body)?;
+    let mut rel: Release = new_release(
+        &opts.name,
+        &opts.version,
+        Producer {
+            name: "regolith-compiler".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+        },
+    );
+    rel.campaign = CampaignRef {
+        name: c.name.clone(),
+        inputs,
+    };
+    rel.plan = std::mem::take(&mut ctx.plan);
+    rel.entries = std::mem::take(&mut ctx.entries);
+    let entries: Vec<String> = {
+        let mut v: Vec<String> = rel.entries.iter().map(|e| e.name.clone()).collect();
+        v.sort();
+        v
+    };
+    let label = rel.label();
+    let id = writer.commit(rel, true)?;
+    writer.set_ref(&format!("cache/{key}"), &id)?;
+    ctx.lap("release.commit");
+    progress("done", 1.0);
+    Ok(CompileSummary {
+        release: label,
+        id: id.to_hex(),
+        entries,
+        registration: summary_body["registration"].clone(),
+        alignment: json!({}),
+        dem: summary_body["dem"].as_array().cloned().unwrap_or_default(),
+        warnings,
+        cached: false,
+        stage_seconds: ctx.times,
+    })
+}
+
+/// Default options for a campaign: release `name@version`.
+pub fn options(c: &Campaign, release: Option<&str>) -> CompileOptions {
+    let (name, version) = match release.and_then(|r| r.split_once('@')) {
+        Some((n, v)) => (n.to_string(), v.to_string()),
+        None => (c.name.clone(), release.unwrap_or("1.0.0").to_string()),
+    };
+    CompileOptions {
+        name,
+        version,
+        lods: 3,
+        limits: regolith_format::limits::Limits::default(),
+    }
+}
+
+/// Loads a campaign and compiles it (convenience for the CLI and tests).
+pub fn compile_path(
+    campaign: &Path,
+    db: &Path,
+    release: Option<&str>,
+    progress: &dyn Fn(&str, f64),
+) -> Result<CompileSummary, CompileError> {
+    let c = crate::ingest::campaign::load(campaign)?;
+    let writer = Writer::create_or_open(db)?;
+    compile(&c, &writer, &options(&c, release), progress)
+}

@@ -1,0 +1,189 @@
+//! Stage `dem.tin`: the Delaunay triangulation (TIN) of the merged ground points in (x, y).
+//!
+//! Design decisions:
+//! - Points that share exactly the same (x, y) are merged *before* triangulating into one vertex
+//!   whose z (and reflectance) is the **mean** of the group: a TIN can hold only one height per
+//!   position, the mean is the least-squares height of the group, and merging ourselves (sorted
+//!   by x, y, then input index) makes the result independent of spade's internal dedup order.
+//! - spade's `bulk_load` is used (O(n log n), far faster than incremental insertion); it is
+//!   single-threaded and deterministic, so the vertex/triangle lists are bit-identical run to run.
+//!   Triangles index our vertex array and are counter-clockwise seen from +z.
+//! - Non-finite coordinates are an error naming the first bad point, never a spade panic.
+
+use rayon::prelude::*;
+use serde::Serialize;
+use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
+
+use super::merge_clean::MergedCloud;
+use crate::stage::{Stage, StageCx, StageError};
+
+/// A triangulated irregular network.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Tin {
+    /// Vertices (x, y unique), ground frame, metres.
+    pub vertices: Vec<[f64; 3]>,
+    /// Per-vertex linear reflectance (see `merge.clean`), when the cloud had it.
+    pub reflectance: Option<Vec<f32>>,
+    /// Counter-clockwise triangles (indices into `vertices`).
+    pub triangles: Vec<[u32; 3]>,
+    /// Input points merged into another one because they shared (x, y).
+    pub duplicates_merged: usize,
+}
+
+/// Statistics of a TIN.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TinStats {
+    /// Number of vertices.
+    pub points: usize,
+    /// Number of triangles.
+    pub triangles: usize,
+    /// Input points merged as (x, y) duplicates.
+    pub duplicates_merged: usize,
+}
+
+impl Tin {
+    /// Point and triangle counts.
+    pub fn stats(&self) -> TinStats {
+        TinStats {
+            points: self.vertices.len(),
+            triangles: self.triangles.len(),
+            duplicates_merged: self.duplicates_merged,
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Vertex {
+    pos: Point2<f64>,
+    index: u32,
+}
+
+impl HasPosition for Vertex {
+    type Scalar = f64;
+    fn position(&self) -> Point2<f64> {
+        self.pos
+    }
+}
+
+/// Triangulates `points` (x, y) carrying z and the optional per-point `reflectance`.
+///
+/// Errors (as text; the stage adds its name) on non-finite points, a reflectance list of the wrong
+/// length, more than `u32::MAX` vertices, or a spade insertion error.
+pub fn build_tin(points: &[[f64; 3]], reflectance: Option<&[f32]>) -> Result<Tin, String> {
+    if let Some(i) = points.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(format!(
+            "point {i} has non-finite coordinates, expected finite x, y, z"
+        ));
+    }
+    if let Some(r) = reflectance {
+        if r.len() != points.len() {
+            return Err(format!(
+                "{} reflectance values for {} points, expected one per point",
+                r.len(),
+                points.len()
+            ));
+        }
+    }
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    let key = |i: usize| points.get(i).map_or([0.0; 3], |p| *p);
+    order.par_sort_unstable_by(|&a, &b| {
+        let (pa, pb) = (key(a), key(b));
+        pa[0]
+            .total_cmp(&pb[0])
+            .then(pa[1].total_cmp(&pb[1]))
+            .then(a.cmp(&b))
+    });
+    let mut vertices: Vec<[f64; 3]> = Vec::new();
+    let mut refl: Vec<f32> = Vec::new();
+    let mut start = 0;
+    while start < order.len() {
+        let first = key(order.get(start).copied().unwrap_or(0));
+        let mut end = start + 1;
+        while order.get(end).is_some_and(|&i| {
+            let p = key(i);
+            p[0] == first[0] && p[1] == first[1]
+        }) {
+            end += 1;
+        }
+        let group = order.get(start..end).unwrap_or(&[]);
+        let n = group.len() as f64;
+        let z = group.iter().map(|&i| key(i)[2]).sum::<f64>() / n;
+        vertices.push([first[0], first[1], z]);
+        if let Some(r) = reflectance {
+            let m = group
+                .iter()
+                .map(|&i| f64::from(r.get(i).copied().unwrap_or(0.0)))
+                .sum::<f64>()
+                / n;
+            refl.push(m as f32);
+        }
+        start = end;
+    }
+    let duplicates_merged = points.len() - vertices.len();
+    let n = u32::try_from(vertices.len())
+        .map_err(|_| format!("{} vertices, expected at most {}", vertices.len(), u32::MAX))?;
+    let spade_vertices: Vec<Vertex> = (0..n)
+        .zip(&vertices)
+        .map(|(index, p)| Vertex {
+            pos: Point2::new(p[0], p[1]),
+            index,
+        })
+        .collect();
+    let dt: DelaunayTriangulation<Vertex> = DelaunayTriangulation::bulk_load(spade_vertices)
+        .map_err(|e| format!("triangulation failed: {e:?}"))?;
+    let triangles: Vec<[u32; 3]> = dt
+        .inner_faces()
+        .map(|f| f.vertices().map(|v| v.data().index))
+        .collect();
+    Ok(Tin {
+        vertices,
+        reflectance: reflectance.map(|_| refl),
+        triangles,
+        duplicates_merged,
+    })
+}
+
+/// Stage `dem.tin` (no tunable parameters: the duplicate rule is fixed, see the module doc).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DemTin;
+
+impl Stage for DemTin {
+    const NAME: &'static str = "dem.tin";
+    const VERSION: u32 = 1;
+    const DESCRIPTION: &'static str =
+        "Delaunay TIN of the merged ground points in (x, y); (x, y) duplicates keep the mean z";
+    type Input = MergedCloud;
+    type Output = Tin;
+
+    fn params(&self) -> serde_json::Value {
+        serde_json::json!({ "duplicates": "mean" })
+    }
+
+    fn run(&self, _cx: &StageCx, input: &MergedCloud) -> Result<Tin, StageError> {
+        build_tin(&input.points, input.reflectance.as_deref())
+            .map_err(|e| StageError::new(Self::NAME, e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn square_with_duplicate_and_centre() {
+        let pts = [
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [0.5, 0.5, 2.0],
+            [0.5, 0.5, 4.0],
+        ];
+        let tin = build_tin(&pts, None).unwrap();
+        assert_eq!(tin.vertices.len(), 5);
+        assert_eq!(tin.duplicates_merged, 1);
+        assert_eq!(tin.triangles.len(), 4);
+        assert!(tin.vertices.contains(&[0.5, 0.5, 3.0]));
+        assert!(build_tin(&[[f64::NAN, 0.0, 0.0]], None).is_err());
+    }
+}

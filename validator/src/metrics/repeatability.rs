@@ -1,0 +1,165 @@
+//! Keypoint repeatability between two images of the same scene (Mikolajczyk & Schmid 2005).
+//!
+//! Keypoints of image A are mapped into image B by a caller-supplied function (identity when both
+//! were taken from the same pose; through the rendered depth otherwise). Only points that fall in
+//! the region both images see count. Points are paired one-to-one, greedily by increasing
+//! distance, so one keypoint is never credited twice; a pair within ε pixels is a repeat.
+//! Repeatability = repeats / min(n_A, n_B) over the common region.
+
+use serde::Serialize;
+
+/// The figures of one comparison at one ε.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Repeatability {
+    /// Tolerance in pixels.
+    pub epsilon_px: f64,
+    /// Keypoints of A inside the common region (after mapping).
+    pub n_a: usize,
+    /// Keypoints of B inside the common region.
+    pub n_b: usize,
+    /// One-to-one pairs within ε.
+    pub repeated: usize,
+    /// `repeated / min(n_a, n_b)` (0 when either is empty).
+    pub score: f64,
+    /// `repeated / n_a`: the thesis's one-directional ratio (A re-detected in B).
+    pub one_directional: f64,
+}
+
+/// Pairs points one-to-one greedily by distance, returning the pair distances (sorted).
+fn greedy_pairs(a: &[[f64; 2]], b: &[[f64; 2]], max_dist: f64) -> Vec<f64> {
+    // Candidate pairs within max_dist, via a uniform grid over B.
+    let cell = max_dist.max(1e-9);
+    let mut grid: std::collections::BTreeMap<(i64, i64), Vec<usize>> =
+        std::collections::BTreeMap::new();
+    for (j, p) in b.iter().enumerate() {
+        grid.entry(((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64))
+            .or_default()
+            .push(j);
+    }
+    let mut cand: Vec<(f64, usize, usize)> = Vec::new();
+    for (i, p) in a.iter().enumerate() {
+        let (cx, cy) = ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for &j in grid
+                    .get(&(cx + dx, cy + dy))
+                    .map(Vec::as_slice)
+                    .unwrap_or(&[])
+                {
+                    let d = (p[0] - b[j][0]).hypot(p[1] - b[j][1]);
+                    if d <= max_dist {
+                        cand.push((d, i, j));
+                    }
+                }
+            }
+        }
+    }
+    cand.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    let (mut used_a, mut used_b) = (vec![false; a.len()], vec![false; b.len()]);
+    let mut out = Vec::new();
+    for (d, i, j) in cand {
+        if !used_a[i] && !used_b[j] {
+            used_a[i] = true;
+            used_b[j] = true;
+            out.push(d);
+        }
+    }
+    out
+}
+
+/// Repeatability of `a` (mapped by `map_a_to_b`, `None` = not visible in B) against `b`, at
+/// every ε of `epsilons`. `in_common(x, y)` says whether a B pixel is seen by both images.
+pub fn repeatability(
+    a: &[[f64; 2]],
+    b: &[[f64; 2]],
+    map_a_to_b: impl Fn([f64; 2]) -> Option<[f64; 2]>,
+    in_common: impl Fn([f64; 2]) -> bool,
+    epsilons: &[f64],
+) -> Vec<Repeatability> {
+    let a_mapped: Vec<[f64; 2]> = a
+        .iter()
+        .filter_map(|p| map_a_to_b(*p))
+        .filter(|p| in_common(*p))
+        .collect();
+    let b_in: Vec<[f64; 2]> = b.iter().copied().filter(|p| in_common(*p)).collect();
+    let max_eps = epsilons.iter().copied().fold(0.0, f64::max);
+    let pairs = greedy_pairs(&a_mapped, &b_in, max_eps);
+    epsilons
+        .iter()
+        .map(|&eps| {
+            // Greedy pairing is redone per ε so a pair beyond ε cannot block a closer one.
+            let repeated = if (eps - max_eps).abs() < 1e-12 {
+                pairs.len()
+            } else {
+                greedy_pairs(&a_mapped, &b_in, eps).len()
+            };
+            let (n_a, n_b) = (a_mapped.len(), b_in.len());
+            let denom = n_a.min(n_b);
+            Repeatability {
+                epsilon_px: eps,
+                n_a,
+                n_b,
+                repeated,
+                score: if denom == 0 {
+                    0.0
+                } else {
+                    repeated as f64 / denom as f64
+                },
+                one_directional: if n_a == 0 {
+                    0.0
+                } else {
+                    repeated as f64 / n_a as f64
+                },
+            }
+        })
+        .collect()
+}
+
+/// The default ε curve: 1, 1.5, 2, 3, 4, 5 px (1.5 px is the certified value).
+pub const EPSILONS: [f64; 6] = [1.0, 1.5, 2.0, 3.0, 4.0, 5.0];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Fixed test vector: 4 points in A, 5 in B; known distances.
+    #[test]
+    fn fixed_vector() {
+        let a = [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]];
+        let b = [
+            [10.5, 10.0],
+            [21.2, 20.0],
+            [30.0, 33.0],
+            [100.0, 100.0],
+            [10.0, 11.0],
+        ];
+        let r = repeatability(&a, &b, Some, |_| true, &EPSILONS);
+        let at = |e: f64| r.iter().find(|x| (x.epsilon_px - e).abs() < 1e-9).unwrap();
+        // ε = 1: only (10,10)-(10.5,10); the (10,11) point is the second-closest to the same A.
+        assert_eq!(at(1.0).repeated, 1);
+        assert_eq!(at(1.5).repeated, 2);
+        assert_eq!(at(3.0).repeated, 3);
+        assert_eq!(at(5.0).n_a, 4);
+        assert_eq!(at(5.0).n_b, 5);
+        assert!((at(1.5).score - 2.0 / 4.0).abs() < 1e-12);
+        assert!((at(3.0).one_directional - 3.0 / 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn common_region_and_mapping() {
+        let a = [[10.0, 10.0], [200.0, 10.0]];
+        let b = [[12.0, 10.0], [202.0, 10.0]];
+        // A shifted by +2 px in B; only x < 100 is common.
+        let r = repeatability(
+            &a,
+            &b,
+            |p| Some([p[0] + 2.0, p[1]]),
+            |p| p[0] < 100.0,
+            &[1.0],
+        );
+        assert_eq!((r[0].n_a, r[0].n_b, r[0].repeated), (1, 1, 1));
+        assert_eq!(r[0].score, 1.0);
+        let none = repeatability(&a, &[], Some, |_| true, &[1.5]);
+        assert_eq!(none[0].score, 0.0);
+    }
+}
