@@ -68,6 +68,17 @@ pub fn read_tiepoints(bytes: &[u8], limits: &Limits) -> Result<Vec<NamedPoint>> 
         Limits::check_len("tie points", out.len() as u64 + 1, limits.max_points)?;
         out.push(NamedPoint { name, xyz });
     }
+    if out.is_empty() {
+        return Err(IngestError::syntax(
+            "at least one tie-point row `Name,X,Y,Z` (line 1)",
+            if bytes.is_empty() {
+                "an empty file"
+            } else {
+                "no data rows"
+            },
+        )
+        .at_line(1));
+    }
     Ok(out)
 }
 
