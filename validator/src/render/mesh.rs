@@ -3,7 +3,7 @@
 //! Design decisions:
 //! * The BVH is built by recursive median splits of triangle centroids along the longest axis
 //!   (`select_nth_unstable_by` with a total order, so the tree is a pure function of the
-//!   input), down to leaves of at most [`LEAF`] triangles. Median splits are not SAH-optimal,
+//!   input), down to leaves of at most `LEAF` triangles. Median splits are not SAH-optimal,
 //!   but they build ~1M-triangle SfM meshes in well under a second and trace fast enough for
 //!   re-rendering; the tree depth is bounded by `log2(n)`.
 //! * Triangles are stored in BVH order with their vertices relative to the mesh origin in
