@@ -13,7 +13,7 @@
 //! `c3dio` 0.8 misreads parameters that hold an empty array (a dimension of 0, e.g. Nexus's
 //! `POINT:MOVIE_ID` `[32, 0]` or `EVENT:TIMES` `[2, 0]`): it drops the 0 and reads data that is
 //! not there, failing with `InvalidParameterData` on real Nexus files such as the pyomeca
-//! sample. [`patch_empty_parameters`] rewrites such records in a copy of the bytes into 1-byte
+//! sample. `patch_empty_parameters` rewrites such records in a copy of the bytes into 1-byte
 //! character arrays in the same bytes (records are linked by offsets; the layout is unchanged); none of them is
 //! a parameter we use, and each is renamed
 //! with a leading `_` so c3dio's typed readers (events, force plates) skip it.

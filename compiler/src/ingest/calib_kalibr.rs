@@ -1,4 +1,4 @@
-//! Kalibr camchain YAML (`camchain.yaml`) → [`CameraModel`]s and the stereo extrinsics.
+//! Kalibr camchain YAML (`camchain.yaml`) → `CameraModel`s and the stereo extrinsics.
 //!
 //! Kalibr writes one map per camera (`cam0`, `cam1`, ...; keys sometimes alphabetically
 //! sorted, long lists wrapped onto continuation lines), formats.md §15:

@@ -2,7 +2,7 @@
 //!
 //! Design decisions:
 //! - Coordinates come back already scaled and offset, as `f64` (they reach 10^6 m).
-//! - Points are read in batches of [`BATCH`] rather than with `read_all`, so a header that
+//! - Points are read in batches of `BATCH` rather than with `read_all`, so a header that
 //!   claims billions of points cannot make us allocate before the data proves it exists; the
 //!   header count is also checked against [`Limits`] first.
 //! - Intensity is kept as stored (`u16` → `f32`): producers scale it differently. Colour is
