@@ -519,7 +519,7 @@ pub fn compile(
         ctx.entries.push(Entry {
             name: "captures".into(),
             kind: kinds::CAPTURES.into(),
-            meta: json!({"captures": out.index.captures.len()}),
+            meta: json!({"captures": out.index.captures.len(), "lighting": c.lighting}),
             files,
             tiles: Vec::new(),
         });

@@ -64,7 +64,7 @@ pub struct GroundToml {
 }
 
 /// `[lighting]` (also the resolved form).
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Lighting {
     /// From +x towards +y, degrees.
