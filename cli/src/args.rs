@@ -76,6 +76,25 @@ pub enum Command {
         #[arg(long, default_value = "out/demo")]
         out: PathBuf,
     },
+    /// Re-render terrain entries at every capture, measure feature repeatability against the
+    /// real images and write a certificate per entry; exit 1 unless every entry passes.
+    Validate {
+        /// The database folder.
+        db: PathBuf,
+        /// The release (default: latest).
+        #[arg(long, default_value = "latest")]
+        release: String,
+        /// Entries to validate (default: every heightfield entry); repeatable.
+        #[arg(long)]
+        entry: Vec<String>,
+        /// Detectors (harris, fast, sift, surf, mser; default: all); repeatable.
+        #[arg(long)]
+        detector: Vec<String>,
+        /// JSON file overriding thresholds (`epsilon_px`, `min_ratio_to_ceiling`,
+        /// `min_repeatability`, `max_photometric_rms`).
+        #[arg(long)]
+        thresholds: Option<PathBuf>,
+    },
     /// Synthetic campaigns with ground truth and hidden effects.
     Corpus {
         /// What to do.

@@ -4,6 +4,7 @@
 //!
 //! `cargo run --release -p regolith-compiler --example bench_ingest [-- FILE.asc | --points N]`
 //! The peer needs `pip install pandas numpy`; without it the peer line says so.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::io::Write;
 use std::process::Command;

@@ -412,8 +412,13 @@ fn encode_raster(
     Ok(())
 }
 
+/// Bumped whenever the pipeline's output bytes change for the same inputs (a stage's version,
+/// the entry layout, report contents), so the whole-compile cache never returns stale releases.
+pub const PIPELINE_VERSION: u32 = 2;
+
 fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
-    let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "name": opts.name, "version": opts.version, "lods": opts.lods, "inputs": inputs});
+    let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "pipeline": PIPELINE_VERSION, "name": opts.name,
+        "version": opts.version, "lods": opts.lods, "inputs": inputs});
     ObjectId::of_bytes(regolith_format::canonical_json::to_string(&v).as_bytes()).to_hex()
 }
 

@@ -1,4 +1,5 @@
 //! Generates a campaign and prints the stage timings: `cargo run -p regolith-corpus --example gen -- mini 1 /tmp/out [--full]`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use regolith_corpus::{generate, GenerateOptions, Preset};
 

@@ -22,6 +22,14 @@ pub const MARKER: &str = "regolith.db";
 pub const LATEST: &str = "latest";
 /// Prefix of the immutable per-release refs (`releases/<name>@<version>`).
 pub const RELEASES_PREFIX: &str = "releases/";
+/// Prefix of certificate refs (`certificates/<release id>/<entry>`), which name a certificate
+/// object rather than a release (SPEC.md §2).
+pub const CERTIFICATES_PREFIX: &str = "certificates/";
+
+/// Whether a ref names a plain object (a certificate) rather than a release.
+pub fn is_object_ref(name: &str) -> bool {
+    name.starts_with(CERTIFICATES_PREFIX)
+}
 
 /// An open database (read-only handle; see [`crate::write::Writer`] for writing).
 #[derive(Debug, Clone)]
@@ -141,6 +149,25 @@ impl Database {
     pub fn release(&self, spec: &str) -> Result<ReleaseView> {
         let id = self.resolve(spec)?;
         self.release_by_id(&id)
+    }
+
+    /// The certificate stored for an entry of a release, verified, if any.
+    pub fn certificate(
+        &self,
+        release: &ObjectId,
+        entry: &str,
+    ) -> Result<Option<serde_json::Value>> {
+        let Some(id) = self.read_ref(&format!("{CERTIFICATES_PREFIX}{release}/{entry}"))? else {
+            return Ok(None);
+        };
+        let bytes = read_verified(&self.root, &id, None, &Site::new(entry, "certificate"))?;
+        serde_json::from_slice(&bytes)
+            .map(Some)
+            .map_err(|e| ReaderError::Decode {
+                entry: entry.to_string(),
+                what: "certificate",
+                message: e.to_string(),
+            })
     }
 
     /// Loads and verifies a release manifest by id.

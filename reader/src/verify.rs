@@ -52,7 +52,25 @@ impl VerifyReport {
 pub fn verify(db: &Database) -> Result<VerifyReport> {
     let mut report = VerifyReport::default();
     let mut checked: BTreeMap<ObjectId, bool> = BTreeMap::new();
-    let mut queue: Vec<(String, ObjectId)> = db.refs()?.into_iter().collect();
+    let mut queue = Vec::new();
+    for (name, id) in db.refs()? {
+        if crate::database::is_object_ref(&name) {
+            report.objects_checked += 1;
+            if let Err(e) =
+                crate::object::read_verified(db.root(), &id, None, &Site::new(&name, "certificate"))
+            {
+                report.problems.push(Problem {
+                    release: name.clone(),
+                    object: id.to_hex(),
+                    entry: name.clone(),
+                    role: "certificate".into(),
+                    message: short_message(&e),
+                });
+            }
+        } else {
+            queue.push((name, id));
+        }
+    }
     let mut seen_releases = std::collections::BTreeSet::new();
     while let Some((via, id)) = queue.pop() {
         if !seen_releases.insert(id) {

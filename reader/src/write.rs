@@ -26,7 +26,9 @@ use regolith_format::manifest::{check_name, MANIFEST_MEDIA_TYPE};
 use regolith_format::{canonical_json, FileRef, ObjectId, Release, SCHEMA};
 use serde::Serialize;
 
-use crate::database::{Database, LATEST, MARKER, RELEASES_PREFIX};
+use crate::database::{
+    is_object_ref, Database, CERTIFICATES_PREFIX, LATEST, MARKER, RELEASES_PREFIX,
+};
 use crate::error::{ReaderError, Result};
 use crate::object::object_path;
 
@@ -183,6 +185,22 @@ impl Writer {
         Ok(())
     }
 
+    /// Stores a certificate (canonical JSON) for an entry of a release and points
+    /// `certificates/<release id>/<entry>` at it; a newer validation replaces the ref.
+    pub fn put_certificate<T: Serialize>(
+        &self,
+        release: &ObjectId,
+        entry: &str,
+        body: &T,
+    ) -> Result<FileRef> {
+        let f = self.put_json(body)?;
+        self.set_ref(
+            &format!("{CERTIFICATES_PREFIX}{release}/{entry}"),
+            &f.object,
+        )?;
+        Ok(f)
+    }
+
     /// Removes every object not reachable from a ref (following release parents) and
     /// leftover temp files. Holds the write lock, so no writer runs meanwhile.
     pub fn gc(&self) -> Result<GcReport> {
@@ -213,7 +231,14 @@ impl Writer {
 /// every file they reference.
 pub fn reachable_objects(db: &Database) -> Result<BTreeSet<ObjectId>> {
     let mut seen = BTreeSet::new();
-    let mut stack: Vec<ObjectId> = db.refs()?.into_values().collect();
+    let mut stack = Vec::new();
+    for (name, id) in db.refs()? {
+        if is_object_ref(&name) {
+            seen.insert(id);
+        } else {
+            stack.push(id);
+        }
+    }
     while let Some(id) = stack.pop() {
         if !seen.insert(id) {
             continue;

@@ -4,6 +4,7 @@
 //! the rendered depth for the Open3D peer check (`tools/peers/render_open3d.py`).
 //!
 //! Run: `cargo run -p regolith-validator --release --example bench_render [-- --export DIR]`
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::time::Instant;
 

@@ -5,6 +5,8 @@
 //! model shared with the corpus generator (which applies hidden effects to "real" images) and
 //! with the gap workflow (which fits them).
 
+pub mod features;
 pub mod metrics;
 pub mod render;
 pub mod sensor;
+pub mod validate;

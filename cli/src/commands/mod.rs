@@ -6,6 +6,7 @@ mod demo;
 mod export;
 mod gc;
 mod inspect;
+mod validate;
 mod verify;
 
 use crate::args::{Cli, Command};
@@ -26,6 +27,20 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             profile,
         } => export::run(db, release, entry, to, *profile, cli.json),
         Command::Gc { db } => gc::run(db, cli.json),
+        Command::Validate {
+            db,
+            release,
+            entry,
+            detector,
+            thresholds,
+        } => validate::run(
+            db,
+            release,
+            entry,
+            detector,
+            thresholds.as_deref(),
+            cli.json,
+        ),
         Command::Compile {
             campaign,
             db,

@@ -6,3 +6,5 @@ pub mod geometry;
 pub mod merge_clean;
 pub mod register_icp;
 pub mod register_tiepoints;
+pub mod sfm_align;
+pub mod sfm_features;

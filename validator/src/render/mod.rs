@@ -90,7 +90,7 @@ pub enum Geometry {
 }
 
 /// A distant light (the sun) plus an ambient share.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Light {
     /// Azimuth of the direction toward the light, degrees from +x toward +y.
     pub azimuth_deg: f64,

@@ -1,0 +1,93 @@
+//! `regolith validate DB`: certify terrain entries against the real captures (see
+//! `regolith_validator::validate`); certificates go into the database under
+//! `certificates/<release id>/<entry>`.
+
+use std::path::Path;
+
+use anyhow::Context;
+use regolith_format::kinds;
+use regolith_reader::{Database, Writer};
+use regolith_validator::features::Detector;
+use regolith_validator::validate::{validate_entry, Thresholds, ValidateOptions};
+
+use super::print_json;
+use crate::Outcome;
+
+pub fn run(
+    db: &Path,
+    release: &str,
+    entries: &[String],
+    detectors: &[String],
+    thresholds: Option<&Path>,
+    json: bool,
+) -> anyhow::Result<Outcome> {
+    let database = Database::open(db)?;
+    let view = database.release(release)?;
+    let mut opts = ValidateOptions::default();
+    if !detectors.is_empty() {
+        opts.detectors = detectors
+            .iter()
+            .map(|d| d.parse::<Detector>())
+            .collect::<Result<_, _>>()?;
+    }
+    if let Some(path) = thresholds {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        opts.thresholds = serde_json::from_str::<Thresholds>(&text)
+            .with_context(|| format!("thresholds file {}", path.display()))?;
+    }
+    let names: Vec<String> = if entries.is_empty() {
+        view.entries()
+            .iter()
+            .filter(|e| e.kind == kinds::HEIGHTFIELD)
+            .map(|e| e.name.clone())
+            .collect()
+    } else {
+        entries.to_vec()
+    };
+    anyhow::ensure!(
+        !names.is_empty(),
+        "release {} has no heightfield entry to validate",
+        view.label()
+    );
+    let writer = Writer::create_or_open(db)?;
+    let mut all_pass = true;
+    let mut out = Vec::new();
+    for name in &names {
+        let cert =
+            validate_entry(&view, name, &opts).with_context(|| format!("validating {name}"))?;
+        let f = writer.put_certificate(&view.id, name, &cert)?;
+        all_pass &= cert.passed;
+        if !json {
+            println!(
+                "{name}: {} (certificate {})",
+                if cert.passed { "PASS" } else { "FAIL" },
+                f.object.short()
+            );
+            for (d, s) in &cert.summary {
+                let ceiling = s
+                    .ceiling
+                    .map_or("   -  ".to_string(), |c| format!("{:.3}", c.mean));
+                let ratio = s.ratio.map_or("   -  ".to_string(), |r| {
+                    format!("{:.3} [{:.3}, {:.3}]", r.mean, r.low, r.high)
+                });
+                println!("  {d:<7} repeatability {:.3}  ceiling {ceiling}  ratio {ratio}  one-directional {:.3}", s.sim.mean, s.one_directional.mean);
+            }
+            for f in &cert.failures {
+                println!("  failed: {f}");
+            }
+        }
+        out.push(serde_json::json!({"entry": name, "certificate": f.object.to_hex(), "passed": cert.passed,
+            "failures": cert.failures, "summary": cert.summary}));
+    }
+    if json {
+        print_json(
+            &serde_json::json!({"release": view.label(), "release_id": view.id.to_hex(), "entries": out, "passed": all_pass}),
+        )?;
+    }
+    Ok(if all_pass {
+        Outcome::Ok
+    } else {
+        Outcome::CheckFailed
+    })
+}

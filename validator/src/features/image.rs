@@ -1,0 +1,275 @@
+//! The grey image type and the filters every detector shares.
+//!
+//! [`GreyF32`] holds row-major `f32` samples; detector inputs are in `[0, 1]` (8-bit images
+//! are `level / 255`), while detectors reuse the type for intermediate planes in other units
+//! (SIFT's scale space works in 0..255 so its thresholds are OpenCV's). Filters follow
+//! OpenCV's conventions so that keypoints can be compared with it pixel for pixel: Gaussian
+//! kernels sized `round(8σ + 1) | 1` (OpenCV's size for float images), normalised, and
+//! `BORDER_REFLECT_101` borders everywhere (`dcb|abcd|cba`).
+//!
+//! Rows are filtered in parallel with indexed rayon iterators; each output row is a pure
+//! function of the input, so results are bit-identical on any thread count.
+
+use rayon::prelude::*;
+
+/// A grey image, row-major, `data.len() == width * height`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GreyF32 {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Samples, row-major.
+    pub data: Vec<f32>,
+}
+
+impl GreyF32 {
+    /// An image from samples; `None` if `data.len() != width * height`.
+    pub fn new(width: usize, height: usize, data: Vec<f32>) -> Option<GreyF32> {
+        (width.checked_mul(height) == Some(data.len())).then_some(GreyF32 {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// An image of zeros.
+    pub fn zeros(width: usize, height: usize) -> GreyF32 {
+        GreyF32 {
+            width,
+            height,
+            data: vec![0.0; width * height],
+        }
+    }
+
+    /// An image from 8-bit levels (`level / 255`); `None` on a size mismatch.
+    pub fn from_u8(width: usize, height: usize, levels: &[u8]) -> Option<GreyF32> {
+        let data = levels.iter().map(|&v| f32::from(v) / 255.0).collect();
+        GreyF32::new(width, height, data)
+    }
+
+    /// True when the image has no pixels or its buffer does not match its size (a truncated
+    /// image); detectors return nothing for such an image.
+    pub fn is_degenerate(&self) -> bool {
+        self.width == 0
+            || self.height == 0
+            || self.width.checked_mul(self.height) != Some(self.data.len())
+    }
+
+    /// 8-bit levels: `round(255 v)` clamped to 0..=255 (`NaN` → 0).
+    pub fn to_u8(&self) -> Vec<u8> {
+        self.data.iter().map(|&v| to_level(v)).collect()
+    }
+
+    /// Sample at `(x, y)`, `0` outside (callers keep inside; this never panics).
+    #[inline]
+    pub fn at(&self, x: usize, y: usize) -> f32 {
+        self.data.get(y * self.width + x).copied().unwrap_or(0.0)
+    }
+
+    /// Row `y` (empty outside).
+    #[inline]
+    pub fn row(&self, y: usize) -> &[f32] {
+        self.data
+            .get(y * self.width..(y + 1) * self.width)
+            .unwrap_or(&[])
+    }
+
+    /// Every sample multiplied by `k`.
+    pub fn scaled(&self, k: f32) -> GreyF32 {
+        GreyF32 {
+            width: self.width,
+            height: self.height,
+            data: self.data.iter().map(|v| v * k).collect(),
+        }
+    }
+}
+
+/// `round(255 v)` clamped to 0..=255 (`NaN` → 0).
+#[inline]
+pub fn to_level(v: f32) -> u8 {
+    // `as` saturates and maps NaN to 0; adding 0.5 then truncating rounds half up.
+    (v * 255.0 + 0.5) as u8
+}
+
+/// OpenCV's `BORDER_REFLECT_101` index into `0..n` (`n > 0`).
+#[inline]
+pub fn reflect101(i: isize, n: usize) -> usize {
+    let n = n as isize;
+    if n <= 1 {
+        return 0;
+    }
+    let mut i = i;
+    loop {
+        if i < 0 {
+            i = -i;
+        } else if i >= n {
+            i = 2 * n - 2 - i;
+        } else {
+            return i as usize;
+        }
+    }
+}
+
+/// Normalised Gaussian kernel of OpenCV's size for float images, `round(8σ + 1) | 1` taps.
+pub fn gaussian_kernel(sigma: f64) -> Vec<f32> {
+    let n = ((sigma.max(1e-3) * 8.0 + 1.0).round() as usize) | 1;
+    gaussian_kernel_n(n, sigma)
+}
+
+/// Normalised Gaussian kernel with exactly `n` taps (OpenCV `getGaussianKernel(n, σ)`).
+pub fn gaussian_kernel_n(n: usize, sigma: f64) -> Vec<f32> {
+    let sigma = sigma.max(1e-3);
+    let r = (n as f64 - 1.0) / 2.0;
+    let w: Vec<f64> = (0..n)
+        .map(|i| (-(i as f64 - r).powi(2) / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let s: f64 = w.iter().sum();
+    w.iter().map(|v| (v / s) as f32).collect()
+}
+
+/// Separable filtering with odd-length kernels per axis, reflect-101 borders. Both passes
+/// loop over taps outside and pixels inside so the inner loop is a vectorisable
+/// multiply-add over a whole row.
+pub fn separable_filter(img: &GreyF32, kx: &[f32], ky: &[f32]) -> GreyF32 {
+    let (w, h) = (img.width, img.height);
+    if img.is_degenerate() {
+        return img.clone();
+    }
+    let rx = kx.len() / 2;
+    let mut tmp = vec![0.0f32; w * h];
+    tmp.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        let src = img.row(y);
+        let padded: Vec<f32> = (0..w + 2 * rx)
+            .map(|i| {
+                src.get(reflect101(i as isize - rx as isize, w))
+                    .copied()
+                    .unwrap_or(0.0)
+            })
+            .collect();
+        for (k, &c) in kx.iter().enumerate() {
+            let win = padded.get(k..k + w).unwrap_or(&[]);
+            for (o, s) in out.iter_mut().zip(win) {
+                *o += c * s;
+            }
+        }
+    });
+    let ry = ky.len() / 2;
+    let mut data = vec![0.0f32; w * h];
+    data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        for (j, &k) in ky.iter().enumerate() {
+            let sy = reflect101(y as isize + j as isize - ry as isize, h);
+            let src = tmp.get(sy * w..(sy + 1) * w).unwrap_or(&[]);
+            for (o, s) in out.iter_mut().zip(src) {
+                *o += k * s;
+            }
+        }
+    });
+    GreyF32 {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
+/// Gaussian blur with standard deviation `sigma` px (OpenCV `GaussianBlur(src, Size(), σ)`
+/// on a float image).
+pub fn gaussian_blur(img: &GreyF32, sigma: f64) -> GreyF32 {
+    let k = gaussian_kernel(sigma);
+    separable_filter(img, &k, &k)
+}
+
+/// 3×3 Sobel derivatives `(d/dx, d/dy)`, unnormalised (OpenCV `Sobel(.., 1, 0, 3)`).
+pub fn sobel(img: &GreyF32) -> (GreyF32, GreyF32) {
+    const D: [f32; 3] = [-1.0, 0.0, 1.0];
+    const S: [f32; 3] = [1.0, 2.0, 1.0];
+    (separable_filter(img, &D, &S), separable_filter(img, &S, &D))
+}
+
+/// Every second pixel in both directions: `dst(x, y) = src(2x, 2y)` (OpenCV `resize` with
+/// `INTER_NEAREST` to half size, as SIFT uses between octaves).
+pub fn decimate2(img: &GreyF32) -> GreyF32 {
+    let (w, h) = (img.width / 2, img.height / 2);
+    let data = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| img.at(2 * x, 2 * y))
+        .collect();
+    GreyF32 {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
+/// Bilinear doubling (OpenCV `resize(.., INTER_LINEAR)` to twice the size): destination
+/// pixel `u` samples the source at `(u + 0.5) / 2 - 0.5`, clamped at the borders.
+pub fn upsample2(img: &GreyF32) -> GreyF32 {
+    let (w, h) = (img.width * 2, img.height * 2);
+    let taps = |u: usize, n: usize| -> (usize, usize, f32) {
+        let s = ((u as f32 + 0.5) * 0.5 - 0.5).max(0.0);
+        let i0 = (s.floor() as usize).min(n - 1);
+        let i1 = (i0 + 1).min(n - 1);
+        (i0, i1, s - i0 as f32)
+    };
+    let mut data = vec![0.0f32; w * h];
+    data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        let (y0, y1, fy) = taps(y, img.height);
+        let (r0, r1) = (img.row(y0), img.row(y1));
+        for (x, o) in out.iter_mut().enumerate() {
+            let (x0, x1, fx) = taps(x, img.width);
+            let g = |r: &[f32], i: usize| r.get(i).copied().unwrap_or(0.0);
+            let top = g(r0, x0) * (1.0 - fx) + g(r0, x1) * fx;
+            let bottom = g(r1, x0) * (1.0 - fx) + g(r1, x1) * fx;
+            *o = top * (1.0 - fy) + bottom * fy;
+        }
+    });
+    GreyF32 {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
+/// Integral image of 8-bit levels, `(width + 1) × (height + 1)`, `sum[y][x]` = sum of the
+/// pixels above and left of `(x, y)` (OpenCV `integral`).
+#[derive(Debug, Clone)]
+pub struct Integral {
+    /// Columns of the sum table (`image width + 1`).
+    pub stride: usize,
+    /// Rows of the sum table (`image height + 1`).
+    pub rows: usize,
+    /// The sums.
+    pub sum: Vec<i64>,
+}
+
+impl Integral {
+    /// Integral of the image's 8-bit levels (see [`GreyF32::to_u8`]).
+    pub fn of_levels(img: &GreyF32) -> Integral {
+        let (w, h) = (img.width, img.height);
+        let stride = w + 1;
+        let mut sum = vec![0i64; stride * (h + 1)];
+        let levels = img.to_u8();
+        for y in 0..h {
+            let mut acc = 0i64;
+            for x in 0..w {
+                acc += i64::from(levels.get(y * w + x).copied().unwrap_or(0));
+                let above = sum.get(y * stride + x + 1).copied().unwrap_or(0);
+                if let Some(s) = sum.get_mut((y + 1) * stride + x + 1) {
+                    *s = above + acc;
+                }
+            }
+        }
+        Integral {
+            stride,
+            rows: h + 1,
+            sum,
+        }
+    }
+
+    /// Sum of the pixels in columns `x0..x1`, rows `y0..y1` (0 if out of range).
+    #[inline]
+    pub fn rect(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> i64 {
+        let g = |x: usize, y: usize| self.sum.get(y * self.stride + x).copied().unwrap_or(0);
+        g(x1, y1) - g(x0, y1) - g(x1, y0) + g(x0, y0)
+    }
+}
