@@ -23,17 +23,19 @@ use serde_json::{json, Value};
 
 use crate::encode::{glb, heightfield, png, EncodeError};
 use crate::error::IngestError;
-use crate::ingest::campaign::{Campaign, Registration, Terrain, TerrainSource, Texture};
+use crate::ingest::campaign::{Align, Campaign, Registration, Terrain, TerrainSource, Texture};
 use crate::ingest::types::{NamedPoint, PointCloud};
 use crate::ingest::{markers, sop_dat, tiepoints, vicon_csv};
-use crate::inventory::load_scan;
+use crate::inventory::{load_reconstruction, load_scan};
 use crate::stage::{Stage, StageCx, StageError};
 use crate::stages::captures::BuildCaptures;
-use crate::stages::dem_raster::{DemRaster, Raster};
+use crate::stages::dem_raster::{DemRaster, MaxEdge, Raster};
 use crate::stages::dem_tin::DemTin;
+use crate::stages::dem_tin::Tin;
 use crate::stages::merge_clean::{MergeClean, MergeScan};
 use crate::stages::register_icp::{IcpInput, IcpScan, RegisterIcp};
 use crate::stages::register_tiepoints::{RegisterTiepoints, ScanTiepoints, TiepointInput};
+use crate::stages::sfm_align::{AlignInput, AlignSfm};
 
 /// Anything that stops a compile. The database is left as it was.
 #[derive(Debug, thiserror::Error)]
@@ -211,7 +213,7 @@ fn laser_terrain(
     markers: &[NamedPoint],
     opts: &CompileOptions,
     dem_out: &mut Vec<Value>,
-) -> Result<Value, CompileError> {
+) -> Result<(Value, Vec<[f64; 3]>), CompileError> {
     let mut clouds: Vec<(String, PointCloud, ScanTiepoints)> = Vec::new();
     for &i in scans {
         let Some(s) = c.scans.get(i) else { continue };
@@ -296,13 +298,14 @@ fn laser_terrain(
             } else {
                 None
             },
+            "reflectance",
             opts.lods,
         )?;
         dem_out.push(json!({"entry": name, "cell_m": r.cell_m, "area_m2": r.stats.surface_area_m2, "volume_m3": r.stats.volume_m3,
             "points": r.stats.points, "triangles": r.stats.triangles, "stats": r.stats}));
     }
     ctx.lap("encode.terrain");
-    Ok(json!({
+    let report = json!({
         "terrain": t.name,
         "scans": regs.iter().zip(&icp_out.scans).map(|(r, i)| json!({
             "name": r.scan, "rms_m": r.rms_m, "max_m": r.max_m, "n_tiepoints": r.n_tiepoints, "method": r.method,
@@ -311,7 +314,120 @@ fn laser_terrain(
         })).collect::<Vec<_>>(),
         "icp": {"iterations": icp_out.iterations, "converged": icp_out.converged},
         "merge": merged.stats,
-    }))
+    });
+    Ok((report, merged.points))
+}
+
+/// A reconstruction terrain: similarity-align the SfM mesh onto the merged laser cloud, then
+/// rasterise the aligned mesh (its vertex colours as the texture) at every requested cell size.
+fn sfm_terrain(
+    ctx: &mut Ctx<'_>,
+    c: &Campaign,
+    t: &Terrain,
+    recons: &[usize],
+    laser: &[[f64; 3]],
+    opts: &CompileOptions,
+    dem_out: &mut Vec<Value>,
+) -> Result<Value, CompileError> {
+    let mut reports = serde_json::Map::new();
+    for &i in recons {
+        let Some(r) = c.reconstructions.get(i) else {
+            continue;
+        };
+        if let Align::Gcp(p) = &r.align {
+            return Err(StageError::new(AlignSfm::NAME, format!("reconstruction {:?}: control-point files ({}) are not read by this compiler version; use align = \"laser\"", r.name, p.display())).into());
+        }
+        if laser.is_empty() {
+            return Err(StageError::new(
+                AlignSfm::NAME,
+                format!(
+                    "reconstruction {:?}: align = \"laser\" needs a laser terrain in the campaign",
+                    r.name
+                ),
+            )
+            .into());
+        }
+        let mesh = load_reconstruction(&c.root, &r.file, r.format, &opts.limits)?;
+        ctx.lap("ingest.reconstruction");
+        let align = AlignSfm::default();
+        let out = align.run(
+            &ctx.cx,
+            &AlignInput {
+                mesh: mesh.clone(),
+                laser: laser.to_vec(),
+                control: Vec::new(),
+            },
+        )?;
+        ctx.record(&align);
+        ctx.lap(AlignSfm::NAME);
+        let colour: Option<Vec<f32>> = mesh.colors.as_ref().map(|cs| {
+            cs.iter()
+                .map(|c| {
+                    (0.299 * f32::from(c[0]) + 0.587 * f32::from(c[1]) + 0.114 * f32::from(c[2]))
+                        / 255.0
+                })
+                .collect()
+        });
+        let tin = Tin {
+            vertices: mesh
+                .positions
+                .iter()
+                .map(|p| out.similarity.apply(*p))
+                .collect(),
+            reflectance: colour,
+            triangles: mesh.triangles.clone(),
+            duplicates_merged: 0,
+        };
+        let raster = DemRaster::new(
+            t.raster_m.clone(),
+            t.bounds_m,
+            MaxEdge::SpacingFactor(4.0),
+            -0.1,
+            1 << 28,
+        )?;
+        for ras in raster.rasterize_all(&tin)? {
+            let name = format!("{}/{}", t.name, cell_label(ras.cell_m));
+            let texture = if t.texture == Texture::VertexColor {
+                colour_png(&ras)?
+            } else {
+                None
+            };
+            encode_raster(
+                ctx,
+                &name,
+                &t.name,
+                &ras,
+                texture,
+                "vertex-color",
+                opts.lods,
+            )?;
+            dem_out.push(json!({"entry": name, "cell_m": ras.cell_m, "area_m2": ras.stats.surface_area_m2, "volume_m3": ras.stats.volume_m3,
+                "points": ras.stats.points, "triangles": ras.stats.triangles, "stats": ras.stats}));
+        }
+        ctx.lap("encode.terrain");
+        reports.insert(
+            r.name.clone(),
+            json!({
+                "scale": out.similarity.scale,
+                "rms_m": out.report.icp.as_ref().map(|i| i.rms_nearest_m),
+                "report": out.report,
+            }),
+        );
+    }
+    Ok(Value::Object(reports))
+}
+
+/// 8-bit texture from per-cell grey values in 0–1 (vertex colours), holes filled.
+fn colour_png(r: &Raster) -> Result<Option<Vec<u8>>, CompileError> {
+    let Some(v) = &r.reflectance else {
+        return Ok(None);
+    };
+    let filled = heightfield::fill_holes(v, r.cols, r.rows);
+    let px: Vec<u8> = filled
+        .iter()
+        .map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
+        .collect();
+    Ok(Some(png::grey8(r.cols as u32, r.rows as u32, &px)?))
 }
 
 fn encode_raster(
@@ -320,6 +436,7 @@ fn encode_raster(
     source: &str,
     r: &Raster,
     texture: Option<Vec<u8>>,
+    content: &str,
     lods: u32,
 ) -> Result<(), CompileError> {
     let enc = heightfield::encode(&heightfield::GridInput {
@@ -365,7 +482,7 @@ fn encode_raster(
     if let Some(png_bytes) = &texture {
         let meta = TextureMeta {
             grid_of: name.into(),
-            content: "reflectance".into(),
+            content: content.into(),
             pixels_per_cell: 1,
             bit_depth: 8,
         };
@@ -414,7 +531,7 @@ fn encode_raster(
 
 /// Bumped whenever the pipeline's output bytes change for the same inputs (a stage's version,
 /// the entry layout, report contents), so the whole-compile cache never returns stale releases.
-pub const PIPELINE_VERSION: u32 = 2;
+pub const PIPELINE_VERSION: u32 = 3;
 
 fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
     let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "pipeline": PIPELINE_VERSION, "name": opts.name,
@@ -469,20 +586,44 @@ pub fn compile(
     let mut registration = Vec::new();
     let mut dem = Vec::new();
     let n_terrains = c.terrains.len().max(1) as f64;
-    for (k, t) in c.terrains.iter().enumerate() {
+    let mut laser_points: Vec<[f64; 3]> = Vec::new();
+    let mut alignment = serde_json::Map::new();
+    let mut order: Vec<&Terrain> = c.terrains.iter().collect();
+    order.sort_by_key(|t| matches!(t.from, TerrainSource::Reconstructions(_)));
+    for (k, t) in order.into_iter().enumerate() {
         progress(
             &format!("terrain {}", t.name),
             0.1 + 0.7 * k as f64 / n_terrains,
         );
         match &t.from {
-            TerrainSource::Scans(idx) => registration.push(laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?),
-            TerrainSource::Reconstructions(_) => ctx.cx.reporter.warn(
-                "compile",
-                "terrain-skipped",
-                format!("terrain {:?}: reconstruction terrains need `sfm.align`, not in this compiler version; skipped", t.name),
-            ),
+            TerrainSource::Scans(idx) => {
+                let (report, points) =
+                    laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?;
+                registration.push(report);
+                if laser_points.is_empty() {
+                    laser_points = points;
+                }
+            }
+            TerrainSource::Reconstructions(idx) => {
+                if let Value::Object(m) =
+                    sfm_terrain(&mut ctx, c, t, idx, &laser_points, opts, &mut dem)?
+                {
+                    alignment.extend(m);
+                }
+            }
         }
     }
+    drop(laser_points);
+    let alignment_full = Value::Object(alignment);
+    let alignment: Value = alignment_full
+        .as_object()
+        .map(|m| {
+            m.iter()
+                .map(|(k, v)| (k.clone(), json!({"scale": v["scale"], "rms_m": v["rms_m"]})))
+                .collect::<serde_json::Map<_, _>>()
+        })
+        .map(Value::Object)
+        .unwrap_or_default();
     progress("captures", 0.85);
     let caps = BuildCaptures {
         limits: opts.limits,
@@ -545,8 +686,10 @@ pub fn compile(
     )?;
     ctx.report("dem", "dem", &json!(dem))?;
     ctx.report("captures", "captures", &out.report)?;
-    let summary_body =
-        json!({"registration": registration, "alignment": {}, "dem": dem, "warnings": warnings});
+    if alignment_full.as_object().is_some_and(|m| !m.is_empty()) {
+        ctx.report("alignment", "alignment", &alignment_full)?;
+    }
+    let summary_body = json!({"registration": registration, "alignment": alignment, "dem": dem, "warnings": warnings});
     ctx.report("summary", "summary", &summary_body)?;
     let mut rel: Release = new_release(
         &opts.name,
@@ -577,7 +720,7 @@ pub fn compile(
         id: id.to_hex(),
         entries,
         registration: summary_body["registration"].clone(),
-        alignment: json!({}),
+        alignment: summary_body["alignment"].clone(),
         dem: summary_body["dem"].as_array().cloned().unwrap_or_default(),
         warnings,
         cached: false,
