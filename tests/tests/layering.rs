@@ -8,7 +8,7 @@ use std::process::Command;
 #[test]
 fn crate_layering_is_respected() {
     let out = Command::new(env!("CARGO"))
-        .args(["metadata", "--format-version", "1", "--offline"])
+        .args(["metadata", "--format-version", "1", "--no-deps"])
         .current_dir(regolith_tests::workspace_root())
         .output()
         .unwrap();
