@@ -95,6 +95,12 @@ pub enum Command {
         #[arg(long)]
         thresholds: Option<PathBuf>,
     },
+    /// The validator's feature detectors and repeatability metric on your own images.
+    Features {
+        /// What to do.
+        #[command(subcommand)]
+        action: FeaturesAction,
+    },
     /// Synthetic campaigns with ground truth and hidden effects.
     Corpus {
         /// What to do.
@@ -154,4 +160,34 @@ pub enum PresetArg {
     Estec,
     /// A small patch for tests.
     Mini,
+}
+
+/// `regolith features ...`
+#[derive(Debug, Subcommand)]
+pub enum FeaturesAction {
+    /// Detect keypoints in an image (PNG/TIFF/JPEG, converted to grey).
+    Detect {
+        /// The image.
+        image: PathBuf,
+        /// harris, fast, sift, surf or mser.
+        #[arg(long, default_value = "sift")]
+        detector: String,
+    },
+    /// Repeatability of a detector between two images of the same scene (ε curve 1-5 px).
+    Repeat {
+        /// First image.
+        image_a: PathBuf,
+        /// Second image.
+        image_b: PathBuf,
+        /// harris, fast, sift, surf or mser.
+        #[arg(long, default_value = "sift")]
+        detector: String,
+        /// 3x3 homography mapping A pixels to B pixels: a text file of 9 numbers, or an OpenCV
+        /// FileStorage YAML holding one 3x3 `!!opencv-matrix`.
+        #[arg(long, conflicts_with = "same_pose")]
+        homography: Option<PathBuf>,
+        /// The images were taken from the same pose (identity mapping).
+        #[arg(long)]
+        same_pose: bool,
+    },
 }

@@ -157,3 +157,79 @@ fn gc_keeps_everything_reachable() {
     assert_eq!(v["removed"], 0);
     assert_eq!(regolith(&["verify", &db]).status.code(), Some(0));
 }
+
+#[test]
+fn features_repeat_follows_the_homography() {
+    use regolith_compiler::ingest::images::{self, GreyImage};
+    let dir = tempfile::tempdir().unwrap();
+    let root = regolith_tests::workspace_root();
+    let src = root.join("corpus/demo/captures/loc01_left_a.png");
+    let a = images::read_path(&src, &Default::default()).unwrap();
+    // B = A shifted by (+3, -2) pixels.
+    let mut b = GreyImage::new(a.width, a.height, 8, &Default::default()).unwrap();
+    for y in 0..a.height {
+        for x in 0..a.width {
+            let (sx, sy) = (x as i64 - 3, y as i64 + 2);
+            if sx >= 0 && sy >= 0 && (sx as u32) < a.width && (sy as u32) < a.height {
+                b.data[(y * a.width + x) as usize] = a.get(sx as u32, sy as u32).unwrap();
+            }
+        }
+    }
+    let pb = dir.path().join("b.png");
+    std::fs::write(&pb, b.to_u8().unwrap()).unwrap();
+    let h = dir.path().join("h.txt");
+    std::fs::write(&h, "1 0 3\n0 1 -2\n0 0 1\n").unwrap();
+    let score = |extra: &[&str]| -> f64 {
+        let mut args = vec![
+            "features",
+            "repeat",
+            src.to_str().unwrap(),
+            pb.to_str().unwrap(),
+            "--detector",
+            "harris",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let out = regolith(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["repeatability"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["epsilon_px"] == 1.5)
+            .unwrap()["score"]
+            .as_f64()
+            .unwrap()
+    };
+    let with_h = score(&["--homography", h.to_str().unwrap()]);
+    let identity = score(&["--same-pose"]);
+    assert!(with_h > 0.8, "homography-mapped repeatability {with_h}");
+    assert!(identity < 0.3, "unmapped repeatability {identity}");
+    let detect = regolith(&[
+        "features",
+        "detect",
+        src.to_str().unwrap(),
+        "--detector",
+        "fast",
+        "--json",
+    ]);
+    let v: Value = serde_json::from_slice(&detect.stdout).unwrap();
+    assert!(v["keypoints"].as_array().unwrap().len() > 50);
+    assert_eq!(
+        regolith(&[
+            "features",
+            "detect",
+            src.to_str().unwrap(),
+            "--detector",
+            "nope"
+        ])
+        .status
+        .code(),
+        Some(2)
+    );
+}

@@ -4,6 +4,7 @@ mod compile;
 mod corpus;
 mod demo;
 mod export;
+mod features;
 mod gc;
 mod inspect;
 mod validate;
@@ -54,6 +55,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             cli.json,
         ),
         Command::Corpus { action } => corpus::run(action, cli.json),
+        Command::Features { action } => features::run(action, cli.json),
         Command::Demo { campaign, out } => demo::run(campaign, out, cli.json),
     }
 }
