@@ -107,6 +107,21 @@ pub enum Command {
         #[command(subcommand)]
         action: CorpusAction,
     },
+    /// Publish a release: refuses unless every terrain entry has a passing certificate for this
+    /// release (run `regolith validate` first), or `--allow-uncertified` is given — which makes a
+    /// child release recording `allow_uncertified: true` in its manifest and publishes that.
+    Release {
+        /// The database folder.
+        db: PathBuf,
+        /// The release (`name@version`, ref or id).
+        release: String,
+        /// Mark it as published (`refs/published/<name>@<version>`).
+        #[arg(long)]
+        publish: bool,
+        /// Publish even without passing certificates (recorded in the manifest).
+        #[arg(long)]
+        allow_uncertified: bool,
+    },
     /// Remove objects no release references (safe: holds the database's write lock).
     Gc {
         /// The database folder.

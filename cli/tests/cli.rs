@@ -233,3 +233,61 @@ fn features_repeat_follows_the_homography() {
         Some(2)
     );
 }
+
+#[test]
+fn publishing_requires_passing_certificates() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = sample_db(dir.path());
+    // No certificate: refused with exit 1, naming the entry.
+    let out = regolith(&["release", &db, "sample@1.0.0", "--publish"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("laser/0.05: no certificate"));
+    let database = regolith_reader::Database::open(&db).unwrap();
+    let view = database.release("sample@1.0.0").unwrap();
+    let hash = view.entry("laser/0.05").unwrap().hash().unwrap().to_hex();
+    let certify = |body: serde_json::Value| {
+        let w = Writer::create_or_open(&db).unwrap();
+        w.put_certificate(&view.id, "laser/0.05", &body).unwrap();
+    };
+    // While another writer holds the database, a second one is refused, not blocked.
+    {
+        let _held = Writer::create_or_open(&db).unwrap();
+        let out = regolith(&["gc", &db]);
+        assert_eq!(out.status.code(), Some(2));
+        assert!(String::from_utf8_lossy(&out.stderr).contains("another process"));
+    }
+    // A failing certificate: refused, with its failure in the message.
+    certify(
+        serde_json::json!({"entry_hash": hash, "passed": false, "failures": ["sift: ratio 0.10 < 0.35, short by 0.25"]}),
+    );
+    let out = regolith(&["release", &db, "sample@1.0.0", "--publish"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("short by 0.25"));
+    // --allow-uncertified: a child release records the exception in its manifest.
+    let out = regolith(&[
+        "release",
+        &db,
+        "sample@1.0.0",
+        "--publish",
+        "--allow-uncertified",
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(0));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let child = database.release(v["id"].as_str().unwrap()).unwrap();
+    assert_eq!(child.manifest.allow_uncertified, Some(true));
+    assert_eq!(child.manifest.parent, Some(view.id));
+    // A passing certificate for this entry: published as is.
+    certify(serde_json::json!({"entry_hash": hash, "passed": true, "failures": []}));
+    assert_eq!(
+        regolith(&["release", &db, "sample@1.0.0", "--publish"])
+            .status
+            .code(),
+        Some(0)
+    );
+    assert_eq!(
+        database.read_ref("published/sample@1.0.0").unwrap(),
+        Some(view.id)
+    );
+    assert_eq!(regolith(&["verify", &db]).status.code(), Some(0));
+}

@@ -18,6 +18,12 @@ pub enum ReaderError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// Another process is writing to the database (it holds `DB/lock`).
+    #[error("the database is being written by another process (lock held on {}/lock); try again when it finishes", path.display())]
+    Locked {
+        /// The database folder.
+        path: PathBuf,
+    },
     /// The folder is not a regolith database.
     #[error("not a regolith database: no readable `regolith.db` marker ({})", path.display())]
     NotADatabase {

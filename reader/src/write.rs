@@ -75,8 +75,19 @@ impl Writer {
             .write(true)
             .open(&lock_path)
             .map_err(ReaderError::io("opening", &lock_path))?;
-        lock.lock()
-            .map_err(ReaderError::io("locking", &lock_path))?;
+        match lock.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                return Err(ReaderError::Locked { path: root.clone() });
+            }
+            Err(std::fs::TryLockError::Error(e)) => {
+                return Err(ReaderError::Io {
+                    op: "locking",
+                    path: lock_path,
+                    source: e,
+                });
+            }
+        }
         let marker = root.join(MARKER);
         if !marker.exists() {
             let body = format!("{{\"schema\":\"{SCHEMA}\"}}\n");

@@ -7,6 +7,7 @@ mod export;
 mod features;
 mod gc;
 mod inspect;
+mod release;
 mod validate;
 mod verify;
 
@@ -28,6 +29,12 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             profile,
         } => export::run(db, release, entry, to, *profile, cli.json),
         Command::Gc { db } => gc::run(db, cli.json),
+        Command::Release {
+            db,
+            release,
+            publish,
+            allow_uncertified,
+        } => release::run(db, release, *publish, *allow_uncertified, cli.json),
         Command::Validate {
             db,
             release,
