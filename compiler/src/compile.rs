@@ -197,12 +197,23 @@ fn reflectance_png(r: &Raster) -> Result<Option<Vec<u8>>, CompileError> {
     v.sort_by(f32::total_cmp);
     let lo = v[v.len() / 100];
     let hi = v[(v.len() * 99) / 100].max(lo + 1e-6);
-    let filled = heightfield::fill_holes(refl, r.cols, r.rows);
+    grey_png(refl, r, lo, hi)
+}
+
+/// Hole-filled per-cell values mapped linearly from `[lo, hi]` to 0–255, as an 8-bit PNG.
+fn grey_png(values: &[f32], r: &Raster, lo: f32, hi: f32) -> Result<Option<Vec<u8>>, CompileError> {
+    let filled = heightfield::fill_holes(values, r.cols, r.rows);
     let px: Vec<u8> = filled
         .iter()
         .map(|x| (((x - lo) / (hi - lo)).clamp(0.0, 1.0) * 255.0).round() as u8)
         .collect();
     Ok(Some(png::grey8(r.cols as u32, r.rows as u32, &px)?))
+}
+
+/// The `dem` summary row of one raster.
+fn dem_row(name: &str, r: &Raster) -> Value {
+    json!({"entry": name, "cell_m": r.cell_m, "area_m2": r.stats.surface_area_m2, "volume_m3": r.stats.volume_m3,
+        "points": r.stats.points, "triangles": r.stats.triangles, "stats": r.stats})
 }
 
 fn laser_terrain(
@@ -301,8 +312,7 @@ fn laser_terrain(
             "reflectance",
             opts.lods,
         )?;
-        dem_out.push(json!({"entry": name, "cell_m": r.cell_m, "area_m2": r.stats.surface_area_m2, "volume_m3": r.stats.volume_m3,
-            "points": r.stats.points, "triangles": r.stats.triangles, "stats": r.stats}));
+        dem_out.push(dem_row(&name, r));
     }
     ctx.lap("encode.terrain");
     let report = json!({
@@ -401,8 +411,7 @@ fn sfm_terrain(
                 "vertex-color",
                 opts.lods,
             )?;
-            dem_out.push(json!({"entry": name, "cell_m": ras.cell_m, "area_m2": ras.stats.surface_area_m2, "volume_m3": ras.stats.volume_m3,
-                "points": ras.stats.points, "triangles": ras.stats.triangles, "stats": ras.stats}));
+            dem_out.push(dem_row(&name, &ras));
         }
         ctx.lap("encode.terrain");
         reports.insert(
@@ -422,12 +431,7 @@ fn colour_png(r: &Raster) -> Result<Option<Vec<u8>>, CompileError> {
     let Some(v) = &r.reflectance else {
         return Ok(None);
     };
-    let filled = heightfield::fill_holes(v, r.cols, r.rows);
-    let px: Vec<u8> = filled
-        .iter()
-        .map(|x| (x.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
-    Ok(Some(png::grey8(r.cols as u32, r.rows as u32, &px)?))
+    grey_png(v, r, 0.0, 1.0)
 }
 
 fn encode_raster(
