@@ -185,29 +185,27 @@ fn cell_label(cell: f64) -> String {
     format!("{cell}")
 }
 
-/// 8-bit texture from linear reflectance: the 1st–99th percentile range stretched to 0–255.
-fn reflectance_png(r: &Raster) -> Result<Option<Vec<u8>>, CompileError> {
-    let Some(refl) = &r.reflectance else {
+/// The 8-bit texture of a raster's linear albedo estimate (laser: incidence-corrected
+/// reflectance; SfM: vertex grey / 255), holes filled: `pixel = round(255 · clamp(albedo, 0, 1))`,
+/// so `pixel / 255` is the albedo (SPEC §5.2) and a plain render matches real grey levels. No
+/// stretch: a stretch would make the scale depend on the terrain's own histogram. `None` when
+/// the raster has no albedo or not one finite value.
+fn albedo_png(r: &Raster) -> Result<Option<Vec<u8>>, CompileError> {
+    let Some(albedo) = r
+        .albedo
+        .as_deref()
+        .filter(|v| v.iter().any(|x| x.is_finite()))
+    else {
         return Ok(None);
     };
-    let mut v: Vec<f32> = refl.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return Ok(None);
-    }
-    v.sort_by(f32::total_cmp);
-    let lo = v[v.len() / 100];
-    let hi = v[(v.len() * 99) / 100].max(lo + 1e-6);
-    grey_png(refl, r, lo, hi)
+    let filled = heightfield::fill_holes(albedo, r.cols, r.rows);
+    let px: Vec<u8> = filled.iter().map(|&a| albedo_to_u8(a)).collect();
+    Ok(Some(png::grey8(r.cols as u32, r.rows as u32, &px)?))
 }
 
-/// Hole-filled per-cell values mapped linearly from `[lo, hi]` to 0–255, as an 8-bit PNG.
-fn grey_png(values: &[f32], r: &Raster, lo: f32, hi: f32) -> Result<Option<Vec<u8>>, CompileError> {
-    let filled = heightfield::fill_holes(values, r.cols, r.rows);
-    let px: Vec<u8> = filled
-        .iter()
-        .map(|x| (((x - lo) / (hi - lo)).clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
-    Ok(Some(png::grey8(r.cols as u32, r.rows as u32, &px)?))
+/// `round(255 · clamp(a, 0, 1))`; NaN (a hole `fill_holes` could not fill) gives 0.
+fn albedo_to_u8(a: f32) -> u8 {
+    (a.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
 /// The `dem` summary row of one raster.
@@ -305,7 +303,7 @@ fn laser_terrain(
             &t.name,
             r,
             if t.texture == Texture::Reflectance {
-                reflectance_png(r)?
+                albedo_png(r)?
             } else {
                 None
             },
@@ -370,6 +368,8 @@ fn sfm_terrain(
         )?;
         ctx.record(&align);
         ctx.lap(AlignSfm::NAME);
+        // Vertex colours are read as linear albedo (grey / 255, Rec. 601 luma for RGB), the
+        // convention of the laser texture (SPEC §5.2); no sRGB decoding.
         let colour: Option<Vec<f32>> = mesh.colors.as_ref().map(|cs| {
             cs.iter()
                 .map(|c| {
@@ -384,7 +384,7 @@ fn sfm_terrain(
                 .iter()
                 .map(|p| out.similarity.apply(*p))
                 .collect(),
-            reflectance: colour,
+            albedo: colour,
             triangles: mesh.triangles.clone(),
             duplicates_merged: 0,
         };
@@ -398,7 +398,7 @@ fn sfm_terrain(
         for ras in raster.rasterize_all(&tin)? {
             let name = format!("{}/{}", t.name, cell_label(ras.cell_m));
             let texture = if t.texture == Texture::VertexColor {
-                colour_png(&ras)?
+                albedo_png(&ras)?
             } else {
                 None
             };
@@ -424,14 +424,6 @@ fn sfm_terrain(
         );
     }
     Ok(Value::Object(reports))
-}
-
-/// 8-bit texture from per-cell grey values in 0–1 (vertex colours), holes filled.
-fn colour_png(r: &Raster) -> Result<Option<Vec<u8>>, CompileError> {
-    let Some(v) = &r.reflectance else {
-        return Ok(None);
-    };
-    grey_png(v, r, 0.0, 1.0)
 }
 
 fn encode_raster(
@@ -535,7 +527,7 @@ fn encode_raster(
 
 /// Bumped whenever the pipeline's output bytes change for the same inputs (a stage's version,
 /// the entry layout, report contents), so the whole-compile cache never returns stale releases.
-pub const PIPELINE_VERSION: u32 = 3;
+pub const PIPELINE_VERSION: u32 = 4;
 
 fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
     let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "pipeline": PIPELINE_VERSION, "name": opts.name,

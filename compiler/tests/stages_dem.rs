@@ -350,7 +350,7 @@ fn dem_matches_the_analytic_surface_and_leaves_holes_empty() {
     assert!(rms <= 0.006 && worst <= 0.05, "rms {rms}, max {worst}");
     assert_eq!(r.stats.points, n);
     // Reflectance raster follows the -10 + 2x dB ramp (linear 10^(dB/10)).
-    let refl = r.reflectance.as_ref().unwrap();
+    let refl = r.albedo.as_ref().unwrap();
     let (row, col) = (r.rows / 2, r.cols / 4);
     let expect = 10f64.powf((-10.0 + 2.0 * r.cell_centre(row, col)[0]) / 10.0);
     assert!((f64::from(refl[row * r.cols + col]) - expect).abs() < 0.02 * expect);
@@ -411,16 +411,17 @@ fn rasters_are_bit_identical_on_one_and_two_threads() {
             let cloud = merged(&truth, &poses);
             let rasters = dem(&cloud, vec![0.03, 0.015], None);
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<u32>>();
-            rasters
+            let per_raster = rasters
                 .iter()
                 .map(|r| {
                     (
                         bits(&r.heights),
-                        bits(r.reflectance.as_ref().unwrap()),
+                        bits(r.albedo.as_ref().unwrap()),
                         r.stats.volume_m3.to_bits(),
                     )
                 })
-                .collect::<Vec<_>>()
+                .collect::<Vec<_>>();
+            (bits(cloud.albedo.as_ref().unwrap()), per_raster)
         })
     };
     assert_eq!(run(1), run(2));

@@ -146,7 +146,8 @@ impl HeightfieldMeta {
 pub struct TextureMeta {
     /// The heightfield entry whose grid the texture shares.
     pub grid_of: String,
-    /// What the pixels hold: `reflectance`, `vertex-color`, `sfm-on-laser`, `albedo`.
+    /// What the pixels hold: `reflectance`, `vertex-color`, `sfm-on-laser`, `albedo` — for all
+    /// four a linear albedo estimate, `value / (2^bit_depth − 1)`, not sRGB (SPEC §5.2).
     pub content: String,
     /// Pixels per heightfield cell along each axis (1 = same grid).
     pub pixels_per_cell: u32,

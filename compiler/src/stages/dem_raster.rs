@@ -1,5 +1,5 @@
 //! Stage `dem.raster`: rasterise the TIN at one or more cell sizes into north-up height grids
-//! (and reflectance grids), with the statistics of the thesis' Table 5.3.
+//! (and albedo grids), with the statistics of the thesis' Table 5.3.
 //!
 //! Grid convention: row 0 is north (max y); `origin` is the centre of the north-west cell; cell
 //! `(r, c)` has its centre at `(origin.x + c·cell, origin.y − r·cell)`. Bounds are the TIN's (x, y)
@@ -88,8 +88,8 @@ pub struct Raster {
     pub bounds: [f64; 4],
     /// Heights, row-major, NaN = nodata.
     pub heights: Vec<f32>,
-    /// Linear reflectance, same layout, when the TIN has it.
-    pub reflectance: Option<Vec<f32>>,
+    /// Linear albedo estimate, same layout, when the TIN has it.
+    pub albedo: Option<Vec<f32>>,
     /// Statistics.
     pub stats: RasterStats,
 }
@@ -341,10 +341,7 @@ fn rasterize(
         }
     }
     let mut heights = vec![f32::NAN; rows * cols];
-    let mut refl = tin
-        .reflectance
-        .as_ref()
-        .map(|_| vec![f32::NAN; rows * cols]);
+    let mut refl = tin.albedo.as_ref().map(|_| vec![f32::NAN; rows * cols]);
     let band_len = BAND_ROWS * cols;
     let grid = Grid {
         origin,
@@ -374,7 +371,7 @@ fn rasterize(
         origin,
         bounds,
         heights,
-        reflectance: refl,
+        albedo: refl,
         stats: RasterStats::default(),
     })
 }
@@ -415,7 +412,7 @@ fn fill_band(
             continue;
         }
         let (c1, r1) = (c1 as usize, (r1 as usize).min(row_end.saturating_sub(1)));
-        let refl = tin.reflectance.as_deref();
+        let refl = tin.albedo.as_deref();
         let att = |k: usize| {
             refl.and_then(|v| v.get(t.idx[k] as usize))
                 .map_or(0.0, |x| f64::from(*x))
@@ -497,7 +494,7 @@ impl Stage for DemRaster {
     const NAME: &'static str = "dem.raster";
     const VERSION: u32 = 1;
     const DESCRIPTION: &'static str =
-        "Rasterise the TIN into north-up height and reflectance grids; long-edge triangles become nodata";
+        "Rasterise the TIN into north-up height and albedo grids; long-edge triangles become nodata";
     type Input = Tin;
     type Output = Vec<Raster>;
 

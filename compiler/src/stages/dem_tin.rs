@@ -2,7 +2,7 @@
 //!
 //! Design decisions:
 //! - Points that share exactly the same (x, y) are merged *before* triangulating into one vertex
-//!   whose z (and reflectance) is the **mean** of the group: a TIN can hold only one height per
+//!   whose z (and albedo) is the **mean** of the group: a TIN can hold only one height per
 //!   position, the mean is the least-squares height of the group, and merging ourselves (sorted
 //!   by x, y, then input index) makes the result independent of spade's internal dedup order.
 //! - spade's `bulk_load` is used (O(n log n), far faster than incremental insertion); it is
@@ -22,8 +22,9 @@ use crate::stage::{Stage, StageCx, StageError};
 pub struct Tin {
     /// Vertices (x, y unique), ground frame, metres.
     pub vertices: Vec<[f64; 3]>,
-    /// Per-vertex linear reflectance (see `merge.clean`), when the cloud had it.
-    pub reflectance: Option<Vec<f32>>,
+    /// Per-vertex linear albedo estimate (the texture value: `merge.clean`'s incidence-corrected
+    /// albedo, or SfM vertex grey / 255), when the source had it.
+    pub albedo: Option<Vec<f32>>,
     /// Counter-clockwise triangles (indices into `vertices`).
     pub triangles: Vec<[u32; 3]>,
     /// Input points merged into another one because they shared (x, y).
@@ -65,20 +66,20 @@ impl HasPosition for Vertex {
     }
 }
 
-/// Triangulates `points` (x, y) carrying z and the optional per-point `reflectance`.
+/// Triangulates `points` (x, y) carrying z and the optional per-point `albedo`.
 ///
-/// Errors (as text; the stage adds its name) on non-finite points, a reflectance list of the wrong
+/// Errors (as text; the stage adds its name) on non-finite points, an albedo list of the wrong
 /// length, more than `u32::MAX` vertices, or a spade insertion error.
-pub fn build_tin(points: &[[f64; 3]], reflectance: Option<&[f32]>) -> Result<Tin, String> {
+pub fn build_tin(points: &[[f64; 3]], albedo: Option<&[f32]>) -> Result<Tin, String> {
     if let Some(i) = points.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
         return Err(format!(
             "point {i} has non-finite coordinates, expected finite x, y, z"
         ));
     }
-    if let Some(r) = reflectance {
+    if let Some(r) = albedo {
         if r.len() != points.len() {
             return Err(format!(
-                "{} reflectance values for {} points, expected one per point",
+                "{} albedo values for {} points, expected one per point",
                 r.len(),
                 points.len()
             ));
@@ -109,7 +110,7 @@ pub fn build_tin(points: &[[f64; 3]], reflectance: Option<&[f32]>) -> Result<Tin
         let n = group.len() as f64;
         let z = group.iter().map(|&i| key(i)[2]).sum::<f64>() / n;
         vertices.push([first[0], first[1], z]);
-        if let Some(r) = reflectance {
+        if let Some(r) = albedo {
             let m = group
                 .iter()
                 .map(|&i| f64::from(r.get(i).copied().unwrap_or(0.0)))
@@ -137,7 +138,7 @@ pub fn build_tin(points: &[[f64; 3]], reflectance: Option<&[f32]>) -> Result<Tin
         .collect();
     Ok(Tin {
         vertices,
-        reflectance: reflectance.map(|_| refl),
+        albedo: albedo.map(|_| refl),
         triangles,
         duplicates_merged,
     })
@@ -149,7 +150,7 @@ pub struct DemTin;
 
 impl Stage for DemTin {
     const NAME: &'static str = "dem.tin";
-    const VERSION: u32 = 1;
+    const VERSION: u32 = 2;
     const DESCRIPTION: &'static str =
         "Delaunay TIN of the merged ground points in (x, y); (x, y) duplicates keep the mean z";
     type Input = MergedCloud;
@@ -160,7 +161,7 @@ impl Stage for DemTin {
     }
 
     fn run(&self, _cx: &StageCx, input: &MergedCloud) -> Result<Tin, StageError> {
-        build_tin(&input.points, input.reflectance.as_deref())
+        build_tin(&input.points, input.albedo.as_deref())
             .map_err(|e| StageError::new(Self::NAME, e))
     }
 }

@@ -1,5 +1,6 @@
 //! Stage `merge.clean`: transform every registered scan to the ground frame, merge, remove
-//! statistical outliers and optionally thin to one point per voxel, keeping reflectance.
+//! statistical outliers and optionally thin to one point per voxel, keeping reflectance and an
+//! incidence-corrected albedo estimate.
 //!
 //! Design decisions:
 //! - **Statistical outlier removal** (as PCL/PDAL `filters.outlier` "statistical"): for every point
@@ -15,16 +16,34 @@
 //!   relative to a white diffuse target *at the same range*), so it is only linearised:
 //!   `ρ = 10^(dB/10)`. Scans that only carry a raw intensity `I` are normalised with the
 //!   inverse-square law of an extended diffuse target: `ρ = I · (r / r_ref)²`, with `r` the range
-//!   (distance to the SOCS origin) and `r_ref = reference_range_m`; incidence angle is not modelled.
+//!   (distance to the SOCS origin) and `r_ref = reference_range_m`.
 //!   The merged cloud has `reflectance` only when every scan provides one of the two (otherwise a
 //!   warning), and keeps the raw `reflectance_db` only when every scan has it.
+//! - **Incidence correction** (`albedo`): `ρ` is relative to a white Lambertian target facing the
+//!   beam, so for a Lambertian surface it is `albedo · cos i`, with `i` the angle between the beam
+//!   and the surface normal — left alone, the texture would carry the scanner's own shading. Per
+//!   point of the *cleaned* cloud (outliers would tilt normals), the normal is the PCA normal of
+//!   its [`NORMAL_K`] nearest neighbours in the merged ground-frame cloud (independent of any DEM,
+//!   and several scans densify the neighbourhood); the beam comes from the point's scanner origin
+//!   `o` (the translation of its scan's `ground_from_socs`): `cos i = |n·(o − p)| / |o − p|` (the
+//!   PCA normal has no sign) and `albedo = ρ / max(cos i, MIN_COS_INCIDENCE)`. The floor (i ≈ 78°)
+//!   bounds the gain where a few degrees of normal error would swing `1 / cos i` wildly. A point
+//!   whose neighbourhood fits no plane keeps `albedo = ρ`. Computed by an indexed parallel map, so
+//!   thread-count independent. Not modelled: non-Lambertian (e.g. retro-reflective) surfaces and any
+//!   residual range dependence of the instrument's calibration.
 
+use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::geometry::{build_tree, knn, mean_std};
+use super::geometry::{build_tree, knn, local_plane, mean_std, translation_part, Tree3};
 use crate::ingest::types::{transform, Matrix4, PointCloud};
 use crate::stage::{Stage, StageCx, StageError};
+
+/// Neighbours of the PCA normal of the incidence correction (with the point itself).
+pub const NORMAL_K: usize = 16;
+/// Floor of `cos i` in the incidence correction: the gain `1 / cos i` is at most 5.
+pub const MIN_COS_INCIDENCE: f64 = 0.2;
 
 /// One registered scan.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,8 +78,11 @@ pub struct MergedCloud {
     pub points: Vec<[f64; 3]>,
     /// RIEGL reflectance in dB, when every scan had it.
     pub reflectance_db: Option<Vec<f32>>,
-    /// Range-normalised linear reflectance (see the module doc).
+    /// Range-normalised linear reflectance `ρ ≈ albedo · cos i` (see the module doc).
     pub reflectance: Option<Vec<f32>>,
+    /// Incidence-corrected albedo estimate `ρ / max(cos i, MIN_COS_INCIDENCE)`, when
+    /// `reflectance` exists; the value the laser texture holds.
+    pub albedo: Option<Vec<f32>>,
     /// Index of the source scan of each point.
     pub scan: Vec<u32>,
     /// Counts.
@@ -198,7 +220,16 @@ impl MergeClean {
             idx = voxel_thin(&all.points, idx, v);
             all.stats.thinned = before - idx.len();
         }
-        Ok(select(all, &idx))
+        let mut out = select(all, &idx);
+        let origins: Vec<Vector3<f64>> = scans
+            .iter()
+            .map(|s| translation_part(&s.ground_from_socs))
+            .collect();
+        out.albedo = out
+            .reflectance
+            .as_deref()
+            .map(|rho| incidence_albedo(&out.points, &out.scan, rho, &origins));
+        Ok(out)
     }
 
     /// `true` for points kept by the statistical outlier filter.
@@ -220,6 +251,44 @@ impl MergeClean {
         let limit = mean + self.sor_n_std * std;
         means.iter().map(|&m| m <= limit).collect()
     }
+}
+
+/// `ρ / max(cos i, MIN_COS_INCIDENCE)` per point (module doc); `origins` indexed by scan.
+pub fn incidence_albedo(
+    points: &[[f64; 3]],
+    scan: &[u32],
+    rho: &[f32],
+    origins: &[Vector3<f64>],
+) -> Vec<f32> {
+    let Some(tree) = build_tree(points) else {
+        return rho.to_vec();
+    };
+    points
+        .par_iter()
+        .zip(rho.par_iter())
+        .zip(scan.par_iter())
+        .map(|((p, &r), &s)| {
+            let cos = origins
+                .get(s as usize)
+                .and_then(|o| cos_incidence(&tree, points, p, o))
+                .unwrap_or(1.0);
+            (f64::from(r) / cos.max(MIN_COS_INCIDENCE)) as f32
+        })
+        .collect()
+}
+
+/// `|n·(o − p)| / |o − p|` with `n` the PCA normal of the neighbourhood of `p`; `None` when no
+/// plane fits or `p` is the origin.
+fn cos_incidence(
+    tree: &Tree3,
+    points: &[[f64; 3]],
+    p: &[f64; 3],
+    origin: &Vector3<f64>,
+) -> Option<f64> {
+    let (plane, _) = local_plane(tree, points, p, NORMAL_K)?;
+    let beam = origin - Vector3::from(*p);
+    let cos = plane.normal.dot(&beam).abs() / beam.norm();
+    cos.is_finite().then_some(cos)
 }
 
 /// Keeps per voxel the point nearest to the voxel centre; output sorted by voxel key.
@@ -260,6 +329,7 @@ fn select(all: MergedCloud, idx: &[usize]) -> MergedCloud {
         points: pick(&all.points, idx),
         reflectance_db: all.reflectance_db.as_deref().map(|v| pick(v, idx)),
         reflectance: all.reflectance.as_deref().map(|v| pick(v, idx)),
+        albedo: all.albedo.as_deref().map(|v| pick(v, idx)),
         scan: pick(&all.scan, idx),
         stats: all.stats,
     }
@@ -267,9 +337,9 @@ fn select(all: MergedCloud, idx: &[usize]) -> MergedCloud {
 
 impl Stage for MergeClean {
     const NAME: &'static str = "merge.clean";
-    const VERSION: u32 = 1;
+    const VERSION: u32 = 2;
     const DESCRIPTION: &'static str =
-        "Transform scans to ground, merge, remove statistical outliers, optional voxel thinning; keep reflectance";
+        "Transform scans to ground, merge, remove statistical outliers, optional voxel thinning; keep reflectance and its incidence-corrected albedo";
     type Input = [MergeScan];
     type Output = MergedCloud;
 
@@ -279,6 +349,8 @@ impl Stage for MergeClean {
             "sor_n_std": self.sor_n_std,
             "voxel_m": self.voxel_m,
             "reference_range_m": self.reference_range_m,
+            "normal_k": NORMAL_K,
+            "min_cos_incidence": MIN_COS_INCIDENCE,
         })
     }
 

@@ -553,7 +553,7 @@ pub fn compare_heights(
     .map_err(|e| e.message)?;
     let tin = Tin {
         vertices: aligned,
-        reflectance: None,
+        albedo: None,
         triangles: triangles.to_vec(),
         duplicates_merged: 0,
     };

@@ -1,0 +1,116 @@
+//! `merge.clean`'s incidence correction against ground truth constructed here: a tilted plane of
+//! known albedo scanned, noise-free, from two known scanner origins, with reflectance written as
+//! the corpus's RIEGL writer does (minus its noise): `dB = 10·log10(albedo · cos i) − 0.05 dB/m ·
+//! range`. The range term (an imperfect instrument range correction) is not undone by the stage;
+//! at the ≤ 2 m ranges of 0–60° incidence here it costs ≤ 2.3 %, inside the 3 % tolerance.
+
+#![allow(clippy::unwrap_used)]
+
+use nalgebra::{Rotation3, Vector3};
+use regolith_compiler::ingest::types::{transform, Matrix4, PointCloud};
+use regolith_compiler::stage::{Stage, StageCx};
+use regolith_compiler::stages::geometry::{compose, invert_rigid};
+use regolith_compiler::stages::merge_clean::{MergeClean, MergeScan, MIN_COS_INCIDENCE};
+
+const ALBEDO: f64 = 0.31;
+/// Distance from each scanner to the plane, metres.
+const HEIGHT_M: f64 = 1.0;
+
+/// Unit normal of the plane: 30° from vertical.
+fn plane_normal() -> Vector3<f64> {
+    Rotation3::from_euler_angles(30f64.to_radians(), 0.0, 0.4) * Vector3::z()
+}
+
+/// One scan of the plane from `origin` (ground), polar ray pattern around the plane's
+/// perpendicular out to 70° incidence, expressed in a rotated SOCS.
+fn scan(name: &str, origin: Vector3<f64>, yaw: f64) -> MergeScan {
+    let n = plane_normal();
+    let u = n.cross(&Vector3::x()).normalize();
+    let v = n.cross(&u);
+    let ground_from_socs: Matrix4 = compose(
+        &Rotation3::from_euler_angles(0.02, -0.01, yaw).into_inner(),
+        &origin,
+    );
+    let socs_from_ground = invert_rigid(&ground_from_socs);
+    let (mut points, mut db) = (Vec::new(), Vec::new());
+    for ia in 0..=140 {
+        let alpha = (f64::from(ia) * 0.5).to_radians();
+        let steps = (f64::from(ia) * 4.0).max(1.0) as u32;
+        for ib in 0..steps {
+            let beta = std::f64::consts::TAU * f64::from(ib) / f64::from(steps);
+            let dir = -n * alpha.cos() + (u * beta.cos() + v * beta.sin()) * alpha.sin();
+            let range = HEIGHT_M / alpha.cos();
+            let p = origin + dir * range;
+            points.push(transform(&socs_from_ground, p.into()));
+            db.push((10.0 * (ALBEDO * alpha.cos()).log10() - 0.05 * range) as f32);
+        }
+    }
+    MergeScan {
+        name: name.into(),
+        cloud: PointCloud {
+            points,
+            reflectance_db: Some(db),
+            ..PointCloud::default()
+        },
+        ground_from_socs,
+    }
+}
+
+#[test]
+fn incidence_correction_recovers_the_albedo_of_a_tilted_plane() {
+    let n = plane_normal();
+    let o1 = Vector3::new(0.2, -0.1, 0.3) + n * HEIGHT_M;
+    let o2 = o1 + n.cross(&Vector3::y()).normalize() * 0.8;
+    let scans = [scan("a", o1, 0.3), scan("b", o2, -1.1)];
+    let merged = MergeClean::default()
+        .run(&StageCx::default(), &scans)
+        .unwrap();
+    let albedo = merged.albedo.as_ref().unwrap();
+    let rho = merged.reflectance.as_ref().unwrap();
+    let origins = [o1, o2];
+    // Worst relative error per 10° band of true incidence, 0–60°.
+    let mut worst = [0.0f64; 6];
+    let mut count = [0usize; 6];
+    for (((p, &s), &a), &r) in merged.points.iter().zip(&merged.scan).zip(albedo).zip(rho) {
+        let beam = origins[s as usize] - Vector3::from(*p);
+        let incidence = (n.dot(&beam).abs() / beam.norm()).acos().to_degrees();
+        let band = (incidence / 10.0) as usize;
+        if incidence <= 60.0 {
+            let band = band.min(5);
+            worst[band] = worst[band].max((f64::from(a) / ALBEDO - 1.0).abs());
+            count[band] += 1;
+        } else {
+            assert!(f64::from(a) <= f64::from(r) / MIN_COS_INCIDENCE * 1.0001);
+        }
+    }
+    eprintln!("points per 10° band {count:?}, worst relative error {worst:.4?}");
+    assert!(count.iter().all(|&c| c > 50), "{count:?}");
+    assert!(worst.iter().all(|&w| w < 0.03), "{worst:?}");
+    // Without the correction the 50–60° band would be off by ~40 %.
+    let raw_worst = merged
+        .points
+        .iter()
+        .zip(rho)
+        .map(|(_, &r)| (f64::from(r) / ALBEDO - 1.0).abs())
+        .fold(0.0, f64::max);
+    assert!(raw_worst > 0.4, "{raw_worst}");
+}
+
+#[test]
+fn too_few_points_for_a_normal_keep_the_reflectance() {
+    let s = MergeScan {
+        name: "tiny".into(),
+        cloud: PointCloud {
+            points: vec![[1.0, 0.0, 0.0], [1.0, 0.1, 0.0]],
+            reflectance_db: Some(vec![-3.0, -6.0]),
+            ..PointCloud::default()
+        },
+        ground_from_socs: compose(&Rotation3::identity().into_inner(), &Vector3::zeros()),
+    };
+    let m = MergeClean::default()
+        .run(&StageCx::default(), &[s])
+        .unwrap();
+    assert_eq!(m.albedo, m.reflectance);
+    let empty = MergeClean::default().run(&StageCx::default(), &[]).unwrap();
+    assert_eq!(empty.albedo, Some(Vec::new()));
+}
