@@ -94,6 +94,33 @@ pub enum Command {
         /// `min_repeatability`, `max_photometric_rms`).
         #[arg(long)]
         thresholds: Option<PathBuf>,
+        /// Also write an offline HTML report (index.html + PNG figures) into this folder:
+        /// real, rendered and difference images, keypoint overlays, repeatability curves,
+        /// keypoint counts and spectra per view, and a summary per entry.
+        #[arg(long, value_name = "DIR")]
+        report: Option<PathBuf>,
+    },
+    /// Find where simulation and measurement disagree for one entry, name the missing effects
+    /// (vignetting, blur, noise, gamma, exposure, shadows, distortion, pose-bias), fit them and
+    /// show the gap before/after; `--apply` writes the fitted sensor model into a child release.
+    Gap {
+        /// The database folder.
+        db: PathBuf,
+        /// The release (default: latest).
+        #[arg(long, default_value = "latest")]
+        release: String,
+        /// The terrain entry, e.g. `laser/0.01`.
+        #[arg(long)]
+        entry: String,
+        /// Only these captures (comma-separated or repeated; default: all).
+        #[arg(long, value_delimiter = ',')]
+        captures: Vec<String>,
+        /// Write the fitted model into a new release whose parent is the examined one.
+        #[arg(long)]
+        apply: bool,
+        /// Minimum share of a stage's held-out error an effect must explain to be named.
+        #[arg(long, default_value_t = 0.10)]
+        min_share: f64,
     },
     /// The validator's feature detectors and repeatability metric on your own images.
     Features {

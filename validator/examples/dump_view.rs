@@ -9,12 +9,13 @@ fn main() {
     let scene = regolith_validator::render::Scene::new(&geometry);
     let light: regolith_validator::render::Light =
         serde_json::from_value(view.entry("captures").unwrap().meta["lighting"].clone()).unwrap();
+    let model = regolith_validator::sensor::stored_model(&view, &a[1]).unwrap();
     let caps = view.captures("captures").unwrap();
     let images = caps.images().unwrap();
     std::fs::create_dir_all(&a[2]).unwrap();
     for (cap, cam) in [("loc01", "navcam_left"), ("loc02", "navcam_left")] {
         let (real, _, sim, r) = regolith_validator::validate::view_images(
-            &view, &a[1], &scene, &light, &images, cap, cam,
+            &view, &a[1], &scene, &light, &images, cap, cam, &model,
         )
         .unwrap();
         let (w, h) = (real.width, real.height);

@@ -22,10 +22,11 @@ use serde_json::{json, Value};
 
 use crate::features::{self, contrast, Detector, DetectorParams, GreyF32};
 use crate::metrics::photometric::{self, Photometric};
-use crate::metrics::repeatability::{repeatability, EPSILONS};
-use crate::metrics::spectrum::{log_ratio, radial_spectrum};
+use crate::metrics::repeatability::{repeatability, repeated_pairs, EPSILONS};
+use crate::metrics::spectrum::{log_ratio, radial_spectrum, RadialSpectrum};
 use crate::metrics::stats::{mean_ci, Interval};
-use crate::render::{AlbedoGrid, Geometry, HeightGrid, Light, RenderOptions, Scene, View};
+use crate::render::{AlbedoGrid, Geometry, HeightGrid, Light, Scene};
+use crate::sensor::{stored_model, SensorModel};
 
 /// Version of the validator recorded in certificates.
 pub const VALIDATOR_VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -175,7 +176,8 @@ pub fn entry_geometry(view: &ReleaseView, entry: &str) -> Result<Geometry, Reade
                 cell_m: m.cell_m,
                 width: g.width,
                 height: g.height,
-                value: g.data.iter().map(|v| 0.1 + 0.8 * v).collect(),
+                // SPEC §5.2: the pixel value / (2^bit_depth − 1) is the linear albedo.
+                value: g.data,
             }
         }
         _ => AlbedoGrid {
@@ -189,9 +191,23 @@ pub fn entry_geometry(view: &ReleaseView, entry: &str) -> Result<Geometry, Reade
     Ok(Geometry::Heightfield { grid, albedo })
 }
 
-/// The contrast-normalised real frames a (and b, if present) and the render of one view, with
-/// the render's terrain mask (255 = terrain).
-#[allow(clippy::type_complexity)]
+/// The campaign light recorded with the release's captures (`meta.lighting`), or the
+/// documented default (azimuth 210°, elevation 62°, ambient 0.35) when there is none.
+pub fn campaign_light(view: &ReleaseView) -> Result<Light, ReaderError> {
+    let caps = view.entry_of_kind("captures", kinds::CAPTURES)?;
+    Ok(
+        serde_json::from_value::<Light>(caps.meta["lighting"].clone()).unwrap_or(Light {
+            azimuth_deg: 210.0,
+            elevation_deg: 62.0,
+            ambient: 0.35,
+        }),
+    )
+}
+
+/// The contrast-normalised real frames a (and b, if present) and the render of one view through
+/// the entry's sensor model `sensor` (noise seeded by the frame's index), with the render's
+/// terrain mask (255 = terrain).
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub fn view_images(
     view: &ReleaseView,
     entry: &str,
@@ -200,6 +216,7 @@ pub fn view_images(
     images: &[regolith_reader::captures::CaptureImage],
     capture: &str,
     camera: &str,
+    sensor: &SensorModel,
 ) -> Result<(GreyF32, Option<GreyF32>, GreyF32, crate::render::Rendered), ReaderError> {
     let frame = |k: u32| {
         images.iter().find(|i| {
@@ -208,25 +225,24 @@ pub fn view_images(
     };
     let a =
         frame(0).ok_or_else(|| decode_err(entry, format!("no raw frame of {capture} {camera}")))?;
-    let model = view.camera(&format!("cameras/{camera}"))?;
-    let rendered = scene.render(
+    let calibrated = view.camera(&format!("cameras/{camera}"))?;
+    let seed = images.iter().position(|i| std::ptr::eq(i, a)).unwrap_or(0) as u64;
+    let r = sensor.render(
+        scene,
         light,
-        &View {
-            camera: model,
-            ground_from_camera: a.ground_from_camera,
-        },
-        &RenderOptions {
-            distort: true,
-            shadows: false,
-            supersample: 2,
-        },
+        &calibrated,
+        &a.ground_from_camera,
+        2,
+        Some(seed),
     );
+    let rendered = r.rendered;
+    let dn: Vec<f32> = r.dn.iter().map(|v| v / 255.0).collect();
     let real_a = contrast::stretch(&grey(&a.data, entry)?);
     let real_b = match frame(1) {
         Some(b) => Some(contrast::stretch(&grey(&b.data, entry)?)),
         None => None,
     };
-    let sim_img = GreyF32::new(rendered.width, rendered.height, rendered.radiance.clone())
+    let sim_img = GreyF32::new(rendered.width, rendered.height, dn)
         .ok_or_else(|| decode_err(entry, "empty render".into()))?;
     let sim_img = contrast::stretch(&sim_img);
     if (sim_img.width, sim_img.height) != (real_a.width, real_a.height) {
@@ -241,22 +257,65 @@ pub fn view_images(
     Ok((real_a, real_b, sim_img, rendered))
 }
 
+/// The keypoints of one detector in one view, for a report.
+#[derive(Debug, Clone)]
+pub struct DetectorKeypoints {
+    /// The detector.
+    pub detector: Detector,
+    /// Keypoints of real frame a.
+    pub real: Vec<features::Keypoint>,
+    /// Keypoints of the render.
+    pub render: Vec<features::Keypoint>,
+    /// `(index in real, index in render)` of the pairs repeated at the certified ε.
+    pub repeated: Vec<(usize, usize)>,
+}
+
+/// What one (capture, camera) view was measured on: the images, keypoints and spectra behind
+/// the figures of the certificate, which keeps only the figures. Handed to the observer of
+/// [`validate_entry_observed`] (the HTML report draws them).
+#[derive(Debug)]
+pub struct ViewArtifacts<'a> {
+    /// Capture name.
+    pub capture: &'a str,
+    /// Camera name.
+    pub camera: &'a str,
+    /// Real frame a, contrast-normalised.
+    pub real_a: &'a GreyF32,
+    /// Real frame b (the repeat frame), contrast-normalised, if present.
+    pub real_b: Option<&'a GreyF32>,
+    /// The render, contrast-normalised.
+    pub render: &'a GreyF32,
+    /// Where the render sees terrain (255), row-major like the images.
+    pub mask: &'a [u8],
+    /// Per detector, in the order of the options.
+    pub keypoints: Vec<DetectorKeypoints>,
+    /// Radial spectra of real frame a and of the render (grey levels 0–255, 8 bands).
+    pub spectra: [&'a RadialSpectrum; 2],
+}
+
 /// Validates one entry against every capture of the release.
 pub fn validate_entry(
     view: &ReleaseView,
     entry: &str,
     opts: &ValidateOptions,
 ) -> Result<Certificate, ReaderError> {
+    validate_entry_observed(view, entry, opts, None)
+}
+
+/// [`validate_entry`], handing each view's images and keypoints to `observe` (called once per
+/// view, from several threads, in no fixed order). The figures are the same with or without it.
+pub fn validate_entry_observed(
+    view: &ReleaseView,
+    entry: &str,
+    opts: &ValidateOptions,
+    observe: Option<&(dyn Fn(&ViewArtifacts<'_>) + Sync)>,
+) -> Result<Certificate, ReaderError> {
     let e = view.entry(entry)?;
     let geometry = entry_geometry(view, entry)?;
     let scene = Scene::new(&geometry);
     let caps_entry = view.entry_of_kind("captures", kinds::CAPTURES)?;
-    let light =
-        serde_json::from_value::<Light>(caps_entry.meta["lighting"].clone()).unwrap_or(Light {
-            azimuth_deg: 210.0,
-            elevation_deg: 62.0,
-            ambient: 0.35,
-        });
+    let light = campaign_light(view)?;
+    let sensor = stored_model(view, entry)?;
     let caps = view.captures("captures")?;
     let images = caps.images()?;
     let mut views_in: Vec<(String, String)> = images
@@ -274,8 +333,9 @@ pub fn validate_entry(
     let per_view: Vec<(Vec<ViewMetrics>, Photometric, Vec<f64>)> = views_in
         .par_iter()
         .map(|(capture, camera)| -> Result<_, ReaderError> {
-            let (real_a, real_b, sim_img, rendered) =
-                view_images(view, entry, &scene, &light, &images, capture, camera)?;
+            let (real_a, real_b, sim_img, rendered) = view_images(
+                view, entry, &scene, &light, &images, capture, camera, &sensor,
+            )?;
             let w = sim_img.width;
             let seen = |p: [f64; 2]| {
                 let (x, y) = (p[0].round(), p[1].round());
@@ -291,6 +351,7 @@ pub fn validate_entry(
                     .collect::<Vec<_>>()
             };
             let mut out = Vec::new();
+            let mut kps = Vec::new();
             for &d in &opts.detectors {
                 let ka = features::detect(&real_a, d, &params);
                 let ks = features::detect(&sim_img, d, &params);
@@ -299,6 +360,14 @@ pub fn validate_entry(
                     let kb = features::detect(b, d, &params);
                     repeatability(&pts(&ka), &pts(&kb), Some, seen, &[eps])[0].score
                 });
+                if observe.is_some() {
+                    kps.push(DetectorKeypoints {
+                        detector: d,
+                        repeated: repeated_pairs(&pts(&ka), &pts(&ks), Some, seen, eps),
+                        real: ka.clone(),
+                        render: ks.clone(),
+                    });
+                }
                 out.push(ViewMetrics {
                     capture: capture.clone(),
                     camera: camera.clone(),
@@ -312,10 +381,23 @@ pub fn validate_entry(
             let to255 = |g: &GreyF32| g.data.iter().map(|v| v * 255.0).collect::<Vec<f32>>();
             let (ra, rs) = (to255(&real_a), to255(&sim_img));
             let photo = photometric::compare(&ra, &rs, &mask, w, sim_img.height);
-            let lr = log_ratio(
-                &radial_spectrum(&rs, w, sim_img.height, 8),
-                &radial_spectrum(&ra, w, sim_img.height, 8),
+            let (spec_s, spec_a) = (
+                radial_spectrum(&rs, w, sim_img.height, 8),
+                radial_spectrum(&ra, w, sim_img.height, 8),
             );
+            let lr = log_ratio(&spec_s, &spec_a);
+            if let Some(observe) = observe {
+                observe(&ViewArtifacts {
+                    capture,
+                    camera,
+                    real_a: &real_a,
+                    real_b: real_b.as_ref(),
+                    render: &sim_img,
+                    mask: &rendered.mask,
+                    keypoints: kps,
+                    spectra: [&spec_a, &spec_s],
+                });
+            }
             Ok((out, photo, lr))
         })
         .collect::<Result<_, _>>()?;
@@ -402,7 +484,7 @@ pub fn validate_entry(
             "contrast": "linear 1-99 % stretch on both images",
             "repeatability": "Mikolajczyk & Schmid, identity mapping (same pose), region = render sees terrain, one-to-one greedy pairing, / min(n_real, n_render)",
             "ceiling": if views.iter().any(|v| v.ceiling.is_some()) { "real frame a vs real frame b at the same pose" } else { "none: absolute thresholds" },
-            "render": {"supersample": 2, "shadows": false, "light": light},
+            "render": {"supersample": 2, "light": light, "sensor_model": sensor},
         }),
         thresholds: th.clone(),
         views,

@@ -5,6 +5,7 @@ mod corpus;
 mod demo;
 mod export;
 mod features;
+mod gap;
 mod gc;
 mod inspect;
 mod release;
@@ -29,6 +30,14 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             profile,
         } => export::run(db, release, entry, to, *profile, cli.json),
         Command::Gc { db } => gc::run(db, cli.json),
+        Command::Gap {
+            db,
+            release,
+            entry,
+            captures,
+            apply,
+            min_share,
+        } => gap::run(db, release, entry, captures, *apply, *min_share, cli.json),
         Command::Release {
             db,
             release,
@@ -41,12 +50,14 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             entry,
             detector,
             thresholds,
+            report,
         } => validate::run(
             db,
             release,
             entry,
             detector,
             thresholds.as_deref(),
+            report.as_deref(),
             cli.json,
         ),
         Command::Compile {

@@ -1,6 +1,7 @@
 //! `regolith validate DB`: certify terrain entries against the real captures (see
 //! `regolith_validator::validate`); certificates go into the database under
-//! `certificates/<release id>/<entry>`.
+//! `certificates/<release id>/<entry>`. With `--report DIR` the same run also draws an offline
+//! HTML report (`regolith_validator::report`).
 
 use std::path::Path;
 
@@ -8,6 +9,7 @@ use anyhow::Context;
 use regolith_format::kinds;
 use regolith_reader::{Database, Writer};
 use regolith_validator::features::Detector;
+use regolith_validator::report::ValidationReport;
 use regolith_validator::validate::{validate_entry, Thresholds, ValidateOptions};
 
 use super::print_json;
@@ -19,6 +21,7 @@ pub fn run(
     entries: &[String],
     detectors: &[String],
     thresholds: Option<&Path>,
+    report: Option<&Path>,
     json: bool,
 ) -> anyhow::Result<Outcome> {
     let database = Database::open(db)?;
@@ -51,11 +54,23 @@ pub fn run(
         view.label()
     );
     let writer = Writer::create_or_open(db)?;
+    let mut html = match report {
+        Some(dir) => Some(
+            ValidationReport::new(dir, &view.label(), &view.id.to_hex())
+                .with_context(|| format!("report folder {}", dir.display()))?,
+        ),
+        None => None,
+    };
     let mut all_pass = true;
     let mut out = Vec::new();
     for name in &names {
-        let cert =
-            validate_entry(&view, name, &opts).with_context(|| format!("validating {name}"))?;
+        let cert = match html.as_mut() {
+            Some(r) => r
+                .validate_entry(&view, name, &opts)
+                .map_err(anyhow::Error::from),
+            None => validate_entry(&view, name, &opts).map_err(anyhow::Error::from),
+        }
+        .with_context(|| format!("validating {name}"))?;
         let f = writer.put_certificate(&view.id, name, &cert)?;
         all_pass &= cert.passed;
         if !json {
@@ -80,10 +95,18 @@ pub fn run(
         out.push(serde_json::json!({"entry": name, "certificate": f.object.to_hex(), "passed": cert.passed,
             "failures": cert.failures, "summary": cert.summary}));
     }
+    let index = match html {
+        Some(r) => Some(r.finish().context("writing the report")?),
+        None => None,
+    };
     if json {
-        print_json(
-            &serde_json::json!({"release": view.label(), "release_id": view.id.to_hex(), "entries": out, "passed": all_pass}),
-        )?;
+        let mut v = serde_json::json!({"release": view.label(), "release_id": view.id.to_hex(), "entries": out, "passed": all_pass});
+        if let Some(index) = &index {
+            v["report"] = index.display().to_string().into();
+        }
+        print_json(&v)?;
+    } else if let Some(index) = &index {
+        println!("report: {}", index.display());
     }
     Ok(if all_pass {
         Outcome::Ok

@@ -25,8 +25,9 @@ pub struct Repeatability {
     pub one_directional: f64,
 }
 
-/// Pairs points one-to-one greedily by distance, returning the pair distances (sorted).
-fn greedy_pairs(a: &[[f64; 2]], b: &[[f64; 2]], max_dist: f64) -> Vec<f64> {
+/// Pairs points one-to-one greedily by distance, returning `(distance, index in a, index in b)`
+/// sorted by distance.
+fn greedy_pairs(a: &[[f64; 2]], b: &[[f64; 2]], max_dist: f64) -> Vec<(f64, usize, usize)> {
     // Candidate pairs within max_dist, via a uniform grid over B.
     let cell = max_dist.max(1e-9);
     let mut grid: std::collections::BTreeMap<(i64, i64), Vec<usize>> =
@@ -61,7 +62,7 @@ fn greedy_pairs(a: &[[f64; 2]], b: &[[f64; 2]], max_dist: f64) -> Vec<f64> {
         if !used_a[i] && !used_b[j] {
             used_a[i] = true;
             used_b[j] = true;
-            out.push(d);
+            out.push((d, i, j));
         }
     }
     out
@@ -76,12 +77,9 @@ pub fn repeatability(
     in_common: impl Fn([f64; 2]) -> bool,
     epsilons: &[f64],
 ) -> Vec<Repeatability> {
-    let a_mapped: Vec<[f64; 2]> = a
-        .iter()
-        .filter_map(|p| map_a_to_b(*p))
-        .filter(|p| in_common(*p))
-        .collect();
-    let b_in: Vec<[f64; 2]> = b.iter().copied().filter(|p| in_common(*p)).collect();
+    let (a_mapped, b_in) = common_points(a, b, map_a_to_b, in_common);
+    let a_mapped: Vec<[f64; 2]> = a_mapped.into_iter().map(|(_, p)| p).collect();
+    let b_in: Vec<[f64; 2]> = b_in.into_iter().map(|(_, p)| p).collect();
     let max_eps = epsilons.iter().copied().fold(0.0, f64::max);
     let pairs = greedy_pairs(&a_mapped, &b_in, max_eps);
     epsilons
@@ -115,6 +113,49 @@ pub fn repeatability(
         .collect()
 }
 
+/// The points of `a` (mapped into B) and of `b` that lie in the common region, each with its
+/// index in the input.
+#[allow(clippy::type_complexity)]
+fn common_points(
+    a: &[[f64; 2]],
+    b: &[[f64; 2]],
+    map_a_to_b: impl Fn([f64; 2]) -> Option<[f64; 2]>,
+    in_common: impl Fn([f64; 2]) -> bool,
+) -> (Vec<(usize, [f64; 2])>, Vec<(usize, [f64; 2])>) {
+    let a_mapped = a
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| Some((i, map_a_to_b(*p)?)))
+        .filter(|(_, p)| in_common(*p))
+        .collect();
+    let b_in = b
+        .iter()
+        .copied()
+        .enumerate()
+        .filter(|(_, p)| in_common(*p))
+        .collect();
+    (a_mapped, b_in)
+}
+
+/// The repeated pairs behind [`repeatability`] at one ε: `(index in a, index in b)` of each
+/// one-to-one pair within ε, by increasing distance (for drawing which keypoints repeated; the
+/// count equals [`Repeatability::repeated`] at that ε).
+pub fn repeated_pairs(
+    a: &[[f64; 2]],
+    b: &[[f64; 2]],
+    map_a_to_b: impl Fn([f64; 2]) -> Option<[f64; 2]>,
+    in_common: impl Fn([f64; 2]) -> bool,
+    epsilon_px: f64,
+) -> Vec<(usize, usize)> {
+    let (a_in, b_in) = common_points(a, b, map_a_to_b, in_common);
+    let pa: Vec<[f64; 2]> = a_in.iter().map(|(_, p)| *p).collect();
+    let pb: Vec<[f64; 2]> = b_in.iter().map(|(_, p)| *p).collect();
+    greedy_pairs(&pa, &pb, epsilon_px)
+        .into_iter()
+        .map(|(_, i, j)| (a_in[i].0, b_in[j].0))
+        .collect()
+}
+
 /// The default ε curve: 1, 1.5, 2, 3, 4, 5 px (1.5 px is the certified value).
 pub const EPSILONS: [f64; 6] = [1.0, 1.5, 2.0, 3.0, 4.0, 5.0];
 
@@ -143,6 +184,12 @@ mod tests {
         assert_eq!(at(5.0).n_b, 5);
         assert!((at(1.5).score - 2.0 / 4.0).abs() < 1e-12);
         assert!((at(3.0).one_directional - 3.0 / 4.0).abs() < 1e-12);
+        // The pairs behind the counts, in input indices.
+        assert_eq!(
+            repeated_pairs(&a, &b, Some, |_| true, 1.5),
+            vec![(0, 0), (1, 1)]
+        );
+        assert_eq!(repeated_pairs(&a, &b, Some, |_| true, 3.0).len(), 3);
     }
 
     #[test]
@@ -159,6 +206,8 @@ mod tests {
         );
         assert_eq!((r[0].n_a, r[0].n_b, r[0].repeated), (1, 1, 1));
         assert_eq!(r[0].score, 1.0);
+        let pairs = repeated_pairs(&a, &b, |p| Some([p[0] + 2.0, p[1]]), |p| p[0] < 100.0, 1.0);
+        assert_eq!(pairs, vec![(0, 0)]);
         let none = repeatability(&a, &[], Some, |_| true, &[1.5]);
         assert_eq!(none[0].score, 0.0);
     }

@@ -193,3 +193,95 @@ impl SensorModel {
         image::apply(&self.effects, radiance, width, height, camera, seed)
     }
 }
+
+/// A render through a sensor model.
+#[derive(Debug, Clone)]
+pub struct SensorRender {
+    /// The plain render (radiance, depth, mask) from the model's camera and pose.
+    pub rendered: crate::render::Rendered,
+    /// Digital numbers (0–255 scale, unclamped) after the model's image effects.
+    pub dn: Vec<f32>,
+    /// The camera used (calibration plus the model's distortion).
+    pub camera: CameraModel,
+}
+
+impl SensorModel {
+    /// Renders `scene` as the camera `calibrated` at the measured `ground_from_camera` sees it
+    /// under this model: its distortion and pose bias move the camera, `shadows` turns on cast
+    /// shadows (direction from the effect, ambient from `light`), and the image effects make
+    /// digital numbers. `noise_seed: None` leaves the noise out (the expected image).
+    pub fn render(
+        &self,
+        scene: &crate::render::Scene<'_>,
+        light: &Light,
+        calibrated: &CameraModel,
+        ground_from_camera: &Pose,
+        supersample: u32,
+        noise_seed: Option<u64>,
+    ) -> SensorRender {
+        let camera = self.camera(calibrated);
+        let (opts, shadow_light) = self.render_options(&RenderOptions {
+            distort: true,
+            shadows: false,
+            supersample,
+        });
+        let light = match shadow_light {
+            Some(l) => Light {
+                ambient: light.ambient,
+                ..l
+            },
+            None => *light,
+        };
+        let rendered = scene.render(
+            &light,
+            &crate::render::View {
+                camera: camera.clone(),
+                ground_from_camera: self.pose(ground_from_camera),
+            },
+            &opts,
+        );
+        let effects = match noise_seed {
+            Some(_) => self.clone(),
+            None => SensorModel {
+                effects: self
+                    .effects
+                    .iter()
+                    .filter(|e| !matches!(e, Effect::Noise { .. }))
+                    .copied()
+                    .collect(),
+            },
+        };
+        let dn = effects.image(
+            &rendered.radiance,
+            rendered.width,
+            rendered.height,
+            calibrated,
+            noise_seed.unwrap_or(0),
+        );
+        SensorRender {
+            rendered,
+            dn,
+            camera,
+        }
+    }
+}
+
+/// Name of the `sensor-model` entry that holds the fitted model of terrain entry `entry`.
+pub fn model_entry_name(entry: &str) -> String {
+    format!("{entry}/sensor-model")
+}
+
+/// The sensor model stored for `entry` in a release (written by `regolith gap --apply`), or the
+/// plain model when there is none.
+pub fn stored_model(
+    view: &regolith_reader::ReleaseView,
+    entry: &str,
+) -> Result<SensorModel, regolith_reader::ReaderError> {
+    let name = model_entry_name(entry);
+    match view.entry(&name) {
+        Ok(e) if e.kind == regolith_format::kinds::SENSOR_MODEL => {
+            view.read_json(&name, regolith_format::kinds::roles::MODEL, "sensor model")
+        }
+        _ => Ok(SensorModel::default()),
+    }
+}

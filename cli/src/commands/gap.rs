@@ -1,0 +1,99 @@
+//! `regolith gap DB --entry E`: the gap workflow of `regolith_validator::gap` — measure,
+//! attribute, and with `--apply` write the fitted sensor model into a child release.
+
+use std::path::Path;
+
+use regolith_reader::{Database, Writer};
+use regolith_validator::gap::{self, apply, GapOptions};
+use serde_json::json;
+
+use super::print_json;
+use crate::Outcome;
+
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    db: &Path,
+    release: &str,
+    entry: &str,
+    captures: &[String],
+    apply_model: bool,
+    min_share: f64,
+    json: bool,
+) -> anyhow::Result<Outcome> {
+    anyhow::ensure!(
+        (0.0..1.0).contains(&min_share),
+        "--min-share must be in [0, 1), got {min_share}"
+    );
+    let database = Database::open(db)?;
+    let view = database.release(release)?;
+    let opts = GapOptions {
+        captures: captures.to_vec(),
+        min_share,
+        ..GapOptions::default()
+    };
+    let result = gap::run(&view, entry, &opts)?;
+    let applied = if apply_model && !result.named.is_empty() {
+        let writer = Writer::create_or_open(db)?;
+        let summary = json!({
+            "release": view.label(),
+            "named": result.named.iter().map(|n| &n.effect).collect::<Vec<_>>(),
+            "gap_metric": result.gap_metric,
+            "gap_before": result.gap_before,
+            "gap_after": result.gap_after,
+        });
+        Some(apply::write_model(
+            &writer,
+            &view,
+            entry,
+            &result.model_after,
+            summary,
+        )?)
+    } else {
+        None
+    };
+    if json {
+        let mut v = serde_json::to_value(&result)?;
+        v["applied"] = match &applied {
+            Some((label, id)) => json!({"release": label, "id": id.to_hex()}),
+            None => serde_json::Value::Null,
+        };
+        print_json(&v)?;
+    } else {
+        println!("{} {entry}", view.label());
+        if result.named.is_empty() {
+            println!("  no effect explains a significant share of the gap");
+        }
+        for n in &result.named {
+            let params: Vec<String> = n
+                .params
+                .iter()
+                .map(|(k, v)| match n.std_err.get(k) {
+                    Some(e) if *e > 0.0 => format!("{k}={v:.4}±{e:.4}"),
+                    _ => format!("{k}={v:.4}"),
+                })
+                .collect();
+            println!(
+                "  {:<12} explains {:>5.1}%  {}",
+                n.effect,
+                100.0 * n.explained_fraction,
+                params.join(" ")
+            );
+            println!("  {:<12} evidence: {}", "", n.evidence);
+        }
+        let (b, a) = (&result.metrics_before, &result.metrics_after);
+        println!(
+            "  gap ({}): {:.2} -> {:.2} DN; geometric alignment residual {:.3} -> {:.3}",
+            result.gap_metric,
+            result.gap_before,
+            result.gap_after,
+            b.alignment_residual,
+            a.alignment_residual
+        );
+        match &applied {
+            Some((label, id)) => println!("  applied: release {label} ({})", id.short()),
+            None if apply_model => println!("  nothing to apply"),
+            None => {}
+        }
+    }
+    Ok(Outcome::Ok)
+}

@@ -1,0 +1,173 @@
+//! Step 1 of the gap workflow: the disagreement as residual fields, not one score.
+//!
+//! Per view, over the render's terrain mask (eroded by 4 px): the photometric residual of the
+//! real frames' mean against the expected render, overall and binned by normalised image radius
+//! (vignetting, distortion), by predicted intensity (exposure, response curve); the radial
+//! power-spectrum log-ratio render/real (blur, noise, missing texture detail) with the render
+//! carrying the model's noise; and the geometric misalignment (pose, distortion) as the residual
+//! of the dense alignment of [`geometry`] at zero increment (normalised band-pass units: 0 for
+//! a perfect alignment, about 2 for unrelated images). The headline gap is the photometric RMS with the noise
+//! of the frame mean removed (`photometric_rms_dn`), because noise is the one disagreement no
+//! deterministic render can remove pixel by pixel; it has its own figures.
+
+use serde::Serialize;
+
+use super::geometry;
+use super::photometry::erode;
+use super::views::{GapView, Prediction};
+use crate::metrics::spectrum::{log_ratio, radial_spectrum};
+use crate::sensor::SensorModel;
+
+const BINS: usize = 8;
+
+/// The figures of one view.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ViewFigures {
+    /// Capture.
+    pub capture: String,
+    /// Camera.
+    pub camera: String,
+    /// Photometric RMS of real mean vs expected render, DN (noise of the mean removed).
+    pub photometric_rms_dn: f64,
+    /// Mean residual real − render, DN.
+    pub mean_residual_dn: f64,
+    /// Mean squared band-pass residual of the geometric alignment.
+    pub alignment_residual: f64,
+}
+
+/// The figures of one model over all views.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Metrics {
+    /// Photometric RMS over all views, DN, noise of the frame mean removed (the headline gap).
+    pub photometric_rms_dn: f64,
+    /// Mean squared band-pass residual of the geometric alignment over all views.
+    pub alignment_residual: f64,
+    /// Mean ratio real/render per normalised-radius bin (0 = principal point, 1 = corner).
+    pub residual_by_radius: Vec<f64>,
+    /// `(render DN, real DN)` means per bin of rendered intensity.
+    pub real_by_intensity: Vec<(f64, f64)>,
+    /// log10 power ratio render/real per spectral band (8 bands to 0.5 cycles/px), mean over views.
+    pub spectrum_log_ratio: Vec<f64>,
+    /// Noise variance of the real frames (from frame pairs), DN², used to correct the RMS.
+    pub noise_variance_dn2: f64,
+    /// Per view.
+    pub views: Vec<ViewFigures>,
+}
+
+/// Measures the disagreement of `preds` (made with `model`) against the real `views`.
+pub fn measure(views: &[GapView], preds: &[Prediction], model: &SensorModel) -> Metrics {
+    let mut sq = 0.0;
+    let mut n = 0usize;
+    let mut noise_sum = 0.0;
+    let mut noise_n = 0usize;
+    let mut rad_sum = [0.0f64; BINS];
+    let mut rad_n = [0usize; BINS];
+    let mut int_sum = [(0.0f64, 0.0f64); BINS];
+    let mut int_n = [0usize; BINS];
+    let mut spectrum = vec![0.0; BINS];
+    let (mut align_sum, mut align_n) = (0.0, 0usize);
+    let mut figures = Vec::new();
+    for (k, (v, p)) in views.iter().zip(preds).enumerate() {
+        let (w, h) = (v.width, v.height);
+        let real = v.mean();
+        let mask = erode(&p.mask, w, h, 4);
+        let frames = v.frames.len() as f64;
+        let cam = &v.camera_model;
+        let corner = ((w as f64 / 2.0).powi(2) + (h as f64 / 2.0).powi(2)).sqrt();
+        let (mut vs, mut vn, mut vm) = (0.0, 0usize, 0.0);
+        let (mut pair_sum, mut pair_n) = (0.0, 0usize);
+        for i in 0..w * h {
+            if !mask[i] || !(2.0..=253.0).contains(&real[i]) {
+                continue;
+            }
+            let (r, s) = (f64::from(real[i]), f64::from(p.dn[i]));
+            vs += (r - s).powi(2);
+            vm += r - s;
+            vn += 1;
+            if v.frames.len() >= 2 {
+                pair_sum += 0.5 * f64::from(v.frames[0][i] - v.frames[1][i]).powi(2);
+                pair_n += 1;
+            }
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            let rho = ((x - cam.cx).powi(2) + (y - cam.cy).powi(2)).sqrt() / corner;
+            let b = ((rho * BINS as f64) as usize).min(BINS - 1);
+            if s > 1.0 {
+                rad_sum[b] += r / s;
+                rad_n[b] += 1;
+            }
+            let bi = ((s / 256.0 * BINS as f64).max(0.0) as usize).min(BINS - 1);
+            int_sum[bi].0 += s;
+            int_sum[bi].1 += r;
+            int_n[bi] += 1;
+        }
+        let noise_var = if pair_n > 0 {
+            pair_sum / pair_n as f64
+        } else {
+            0.0
+        };
+        noise_sum += noise_var * pair_n as f64;
+        noise_n += pair_n;
+        let view_mse = if vn > 0 { vs / vn as f64 } else { 0.0 };
+        sq += vs - noise_var / frames * vn as f64;
+        n += vn;
+        // Spectrum of the render with the model's noise against one real frame.
+        let sim = model.image(&p.radiance, w, h, cam, 0x9a9 + k as u64);
+        let lr = log_ratio(
+            &radial_spectrum(&sim, w, h, BINS),
+            &radial_spectrum(&v.frames[0], w, h, BINS),
+        );
+        for (s, x) in spectrum.iter_mut().zip(&lr) {
+            *s += x / views.len().max(1) as f64;
+        }
+        let band = geometry::LEVELS[geometry::LEVELS.len() - 1];
+        let (img, obs) =
+            geometry::prepare(0, 0, &p.dn, &real, &p.mask, &p.depth, &p.camera, w, h, band);
+        let align = geometry::mse(&obs, std::slice::from_ref(&img), &[0.0; 8]);
+        align_sum += align * obs.len() as f64;
+        align_n += obs.len();
+        figures.push(ViewFigures {
+            capture: v.capture.clone(),
+            camera: v.camera.clone(),
+            photometric_rms_dn: (view_mse - noise_var / frames).max(0.0).sqrt(),
+            mean_residual_dn: if vn > 0 { vm / vn as f64 } else { 0.0 },
+            alignment_residual: align,
+        });
+    }
+    Metrics {
+        photometric_rms_dn: if n > 0 {
+            (sq / n as f64).max(0.0).sqrt()
+        } else {
+            0.0
+        },
+        alignment_residual: if align_n > 0 {
+            align_sum / align_n as f64
+        } else {
+            0.0
+        },
+        residual_by_radius: (0..BINS)
+            .map(|b| {
+                if rad_n[b] > 0 {
+                    rad_sum[b] / rad_n[b] as f64
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect(),
+        real_by_intensity: (0..BINS)
+            .filter(|&b| int_n[b] > 0)
+            .map(|b| {
+                (
+                    int_sum[b].0 / int_n[b] as f64,
+                    int_sum[b].1 / int_n[b] as f64,
+                )
+            })
+            .collect(),
+        spectrum_log_ratio: spectrum,
+        noise_variance_dn2: if noise_n > 0 {
+            noise_sum / noise_n as f64
+        } else {
+            0.0
+        },
+        views: figures,
+    }
+}

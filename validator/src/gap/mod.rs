@@ -1,0 +1,623 @@
+//! `regolith gap`: find where the simulation and the measurement disagree, name the missing
+//! effect, fit it, and show the gap shrink.
+//!
+//! The workflow, per terrain entry, over every (capture, camera) view of the release:
+//! 1. **Measure** ([`measure`]) with the entry's current sensor model: the photometric residual
+//!    of the real frames' mean against the expected render (overall, by image radius, by
+//!    intensity), the radial power-spectrum log-ratio, the noise variance by intensity (from the
+//!    repeat frames), and the residual of the dense geometric alignment.
+//! 2. **Attribute**, in the order that keeps effects from masquerading as each other: geometry
+//!    first ([`geometry`]: `distortion`, `pose-bias` jointly, by dense alignment), then
+//!    photometry jointly ([`photometry`]: `exposure`, `vignetting`, `gamma`, `blur`, each with and
+//!    without `shadows` of the campaign light, whose direction is then refined), then `noise`
+//!    ([`noise`], from the repeat frames). Within a stage every subset of candidates is fitted and
+//!    scored on held-out captures, and the subset is chosen jointly ([`select`]); an effect is
+//!    named only if it explains at least a set share of the stage's held-out error.
+//! 3. **Add**: the named effects join the entry's sensor model (see [`apply`] for writing it into
+//!    a child release), and the measurement is repeated with the new model (before/after).
+//!
+//! Known limits: `texture-lowpass` (a texture too smooth for the real
+//! albedo) is in the catalogue but not attributed yet — the spectrum log-ratio is reported so
+//! it can be seen; and an entry whose texture is noisier than the real albedo (laser
+//! reflectance speckle) makes `blur` explain part of that difference.
+
+pub mod apply;
+pub mod geometry;
+pub mod lsq;
+pub mod measure;
+pub mod noise;
+pub mod photometry;
+pub mod select;
+pub mod views;
+
+use std::collections::BTreeMap;
+
+use regolith_reader::{ReaderError, ReleaseView};
+use serde::Serialize;
+
+use crate::render::{Light, Scene};
+use crate::sensor::{stored_model, Effect, SensorModel};
+use crate::validate::{campaign_light, entry_geometry};
+
+pub use measure::Metrics;
+use select::{choose, subsets, Candidate};
+use views::{load_views, predict, GapView, Prediction};
+
+/// Options of a gap run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GapOptions {
+    /// Only these captures (all when empty).
+    pub captures: Vec<String>,
+    /// Render supersampling per axis.
+    pub supersample: u32,
+    /// Minimum held-out share of the stage error an effect must explain to be named.
+    pub min_share: f64,
+}
+
+impl Default for GapOptions {
+    fn default() -> Self {
+        GapOptions {
+            captures: Vec::new(),
+            supersample: 2,
+            min_share: 0.10,
+        }
+    }
+}
+
+/// A named effect.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Named {
+    /// Catalogue name.
+    pub effect: String,
+    /// Fitted parameters.
+    pub params: BTreeMap<String, f64>,
+    /// Standard error of each parameter.
+    pub std_err: BTreeMap<String, f64>,
+    /// Share of the stage's held-out error the effect explains.
+    pub explained_fraction: f64,
+    /// `geometry`, `photometry` or `noise`.
+    pub stage: String,
+    /// What showed it.
+    pub evidence: String,
+}
+
+/// One scored candidate subset of a stage.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScoredCandidate {
+    /// The effects.
+    pub effects: Vec<String>,
+    /// Free parameters.
+    pub k: usize,
+    /// Held-out error (geometry: normalised band-pass residual²; photometry: DN²).
+    pub cv_error: f64,
+}
+
+/// The result of a gap run.
+#[derive(Debug, Clone, Serialize)]
+pub struct GapResult {
+    /// The release examined.
+    pub release_id: String,
+    /// The entry.
+    pub entry: String,
+    /// The named effects, geometry first.
+    pub named: Vec<Named>,
+    /// The headline gap metric's name.
+    pub gap_metric: String,
+    /// Headline gap with the model before.
+    pub gap_before: f64,
+    /// Headline gap with the model after.
+    pub gap_after: f64,
+    /// All metrics before.
+    pub metrics_before: Metrics,
+    /// All metrics after.
+    pub metrics_after: Metrics,
+    /// The model before (the entry's stored one, or plain).
+    pub model_before: SensorModel,
+    /// The model after (before + named effects).
+    pub model_after: SensorModel,
+    /// Every candidate of every stage with its held-out error.
+    pub candidates: BTreeMap<String, Vec<ScoredCandidate>>,
+}
+
+/// Fold of each view: the index of its capture (views of one capture are held out together).
+fn folds(views: &[GapView]) -> Vec<usize> {
+    let mut names: Vec<&str> = views.iter().map(|v| v.capture.as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    if names.len() >= 2 {
+        views
+            .iter()
+            .map(|v| names.iter().position(|n| *n == v.capture).unwrap_or(0))
+            .collect()
+    } else {
+        // One capture: hold out cameras instead.
+        let mut cams: Vec<&str> = views.iter().map(|v| v.camera.as_str()).collect();
+        cams.sort_unstable();
+        cams.dedup();
+        views
+            .iter()
+            .map(|v| cams.iter().position(|n| *n == v.camera).unwrap_or(0))
+            .collect()
+    }
+}
+
+/// Held-out error of a fit: mean over folds of `test(train on the others, fold)`; with one
+/// fold, the in-sample error.
+fn cross_validate(n_folds: usize, fit_and_test: &(dyn Fn(Option<usize>) -> f64 + Sync)) -> f64 {
+    if n_folds < 2 {
+        return fit_and_test(None);
+    }
+    (0..n_folds).map(|f| fit_and_test(Some(f))).sum::<f64>() / n_folds as f64
+}
+
+struct Ctx<'a> {
+    scene: Scene<'a>,
+    light: Light,
+    views: Vec<GapView>,
+    folds: Vec<usize>,
+    n_folds: usize,
+    supersample: u32,
+}
+
+impl Ctx<'_> {
+    fn predict_all(&self, model: &SensorModel) -> Vec<Prediction> {
+        self.views
+            .iter()
+            .map(|v| predict(&self.scene, &self.light, v, model, self.supersample))
+            .collect()
+    }
+}
+
+fn has(model: &SensorModel, name: &str) -> bool {
+    model.effects.iter().any(|e| e.name() == name)
+}
+
+/// Adds `e` to `model`: an effect already present is replaced by `e`.
+fn upsert(model: &mut SensorModel, e: Effect) {
+    match model.effects.iter_mut().find(|x| x.name() == e.name()) {
+        Some(x) => *x = e,
+        None => model.effects.push(e),
+    }
+}
+
+fn named(
+    e: &Effect,
+    std_err: BTreeMap<String, f64>,
+    share: f64,
+    stage: &str,
+    evidence: String,
+) -> Named {
+    Named {
+        effect: e.name().to_string(),
+        params: e
+            .params()
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v))
+            .collect(),
+        std_err,
+        explained_fraction: share,
+        stage: stage.to_string(),
+        evidence,
+    }
+}
+
+fn scored(cands: &[Candidate]) -> Vec<ScoredCandidate> {
+    cands
+        .iter()
+        .map(|c| ScoredCandidate {
+            effects: c.effects.iter().map(|s| s.to_string()).collect(),
+            k: c.k,
+            cv_error: c.cv_error,
+        })
+        .collect()
+}
+
+type Levels = Vec<(Vec<geometry::ViewImages>, Vec<geometry::Observation>)>;
+
+/// The band-pass levels of every view for the geometric fit, from renders with `model`.
+fn geometry_levels(ctx: &Ctx<'_>, model: &SensorModel) -> Levels {
+    let preds = ctx.predict_all(model);
+    geometry::LEVELS
+        .iter()
+        .map(|band| {
+            let mut imgs = Vec::new();
+            let mut obs = Vec::new();
+            for (i, (v, p)) in ctx.views.iter().zip(&preds).enumerate() {
+                let (img, o) = geometry::prepare(
+                    i,
+                    ctx.folds[i],
+                    &p.dn,
+                    &v.mean(),
+                    &p.mask,
+                    &p.depth,
+                    &p.camera,
+                    v.width,
+                    v.height,
+                    *band,
+                );
+                imgs.push(img);
+                obs.extend(o);
+            }
+            (imgs, obs)
+        })
+        .collect()
+}
+
+/// Coarse-to-fine fit of `set` on the observations passing `keep`.
+fn fit_levels(
+    levels: &Levels,
+    set: &[&str],
+    keep: &dyn Fn(&geometry::Observation, &[geometry::ViewImages]) -> bool,
+) -> geometry::GeometryFit {
+    let mut start = [0.0; 8];
+    let mut last = None;
+    for (imgs, obs) in levels {
+        let train: Vec<_> = obs.iter().filter(|o| keep(o, imgs)).copied().collect();
+        let f = geometry::fit(&train, imgs, set, &start);
+        start = f.params;
+        last = Some(f);
+    }
+    last.unwrap_or(geometry::GeometryFit {
+        params: [0.0; 8],
+        std_err: [0.0; 8],
+        mse: 0.0,
+    })
+}
+
+/// Stage 1: geometry. Returns the scored candidates and updates `model`.
+fn geometry_stage(
+    ctx: &Ctx<'_>,
+    model: &mut SensorModel,
+    min_share: f64,
+    out: &mut Vec<Named>,
+) -> Vec<ScoredCandidate> {
+    let levels = geometry_levels(ctx, model);
+    let Some((fine_imgs, fine_obs)) = levels.last() else {
+        return Vec::new();
+    };
+    if fine_obs.len() < 100 {
+        return Vec::new();
+    }
+    let names: Vec<&'static str> = ["distortion", "pose-bias"].to_vec();
+    let cands: Vec<Candidate> = subsets(&names)
+        .into_iter()
+        .map(|set| {
+            let cv = cross_validate(ctx.n_folds, &|hold| {
+                let f = fit_levels(&levels, &set, &|o, imgs| Some(imgs[o.view].fold) != hold);
+                let test: Vec<_> = fine_obs
+                    .iter()
+                    .filter(|o| hold.is_none_or(|h| fine_imgs[o.view].fold == h))
+                    .copied()
+                    .collect();
+                geometry::mse(&test, fine_imgs, &f.params)
+            });
+            Candidate {
+                k: geometry::free(&set).len(),
+                effects: set,
+                cv_error: cv,
+            }
+        })
+        .collect();
+    let Some(choice) = choose(&cands, min_share) else {
+        return scored(&cands);
+    };
+    let set = cands[choice.index].effects.clone();
+    if set.is_empty() {
+        return scored(&cands);
+    }
+    // Fit on everything, apply, and refine once from the corrected render.
+    let f = fit_levels(&levels, &set, &|_, _| true);
+    let mut current = with_geometry(model, &set, &f.params);
+    let refine = fit_levels(&geometry_levels(ctx, &current), &set, &|_, _| true);
+    current = with_geometry(&current, &set, &refine.params);
+    let std_err = refine.std_err;
+    *model = current;
+    let base_err = cands
+        .iter()
+        .find(|c| c.effects.is_empty())
+        .map_or(0.0, |c| c.cv_error);
+    for (name, share) in &choice.explained {
+        let range = if *name == "distortion" { 0..2 } else { 2..8 };
+        let errs = range
+            .map(|i| (geometry::PARAMS[i].to_string(), std_err[i]))
+            .collect();
+        let Some(e) = model.effects.iter().find(|x| x.name() == *name).copied() else {
+            continue;
+        };
+        out.push(named(
+            &e,
+            errs,
+            *share,
+            "geometry",
+            format!(
+                "dense alignment: held-out band-pass residual {:.4} with no effect, {:.4} with the chosen set",
+                base_err, cands[choice.index].cv_error
+            ),
+        ));
+    }
+    scored(&cands)
+}
+
+/// `base` with the geometric increments `p` of the effects in `set` added.
+fn with_geometry(base: &SensorModel, set: &[&str], p: &[f64; 8]) -> SensorModel {
+    let mut m = base.clone();
+    let (dist, bias) = geometry::effects_of(p);
+    if set.contains(&"distortion") {
+        let e = match m.effects.iter().find(|e| e.name() == "distortion") {
+            Some(Effect::Distortion { dk1, dk2 }) => Effect::Distortion {
+                dk1: dk1 + p[0],
+                dk2: dk2 + p[1],
+            },
+            _ => dist,
+        };
+        upsert(&mut m, e);
+    }
+    if set.contains(&"pose-bias") {
+        // Increments compose after the existing bias (the render already used it).
+        m.effects.push(bias);
+        let composed = m.pose(&regolith_format::frames::Pose::IDENTITY);
+        m.effects.retain(|e| e.name() != "pose-bias");
+        let r = composed.rotation_matrix();
+        // R = Rz Ry Rx: recover the angles.
+        let ry = (-r[2][0]).asin();
+        let rx = r[2][1].atan2(r[2][2]);
+        let rz = r[1][0].atan2(r[0][0]);
+        m.effects.push(Effect::PoseBias {
+            translation_m: composed.translation_m,
+            rotation_deg: [rx.to_degrees(), ry.to_degrees(), rz.to_degrees()],
+        });
+    }
+    m
+}
+
+/// Stage 2: photometry (+ shadows). Updates `model`.
+fn photometry_stage(
+    ctx: &Ctx<'_>,
+    model: &mut SensorModel,
+    min_share: f64,
+    out: &mut Vec<Named>,
+) -> Vec<ScoredCandidate> {
+    let samples_of = |m: &SensorModel| {
+        let preds = ctx.predict_all(m);
+        let mut s = photometry::Samples::default();
+        for ((v, p), f) in ctx.views.iter().zip(&preds).zip(&ctx.folds) {
+            s.add(*f, v, p);
+        }
+        s
+    };
+    let base_light = ctx.light;
+    let shadows_at = |az: f64, el: f64| {
+        let mut m = model.clone();
+        upsert(
+            &mut m,
+            Effect::Shadows {
+                azimuth_deg: az,
+                elevation_deg: el,
+            },
+        );
+        m
+    };
+    let plain = samples_of(model);
+    let shadowed = (!has(model, "shadows")).then(|| {
+        samples_of(&shadows_at(
+            base_light.azimuth_deg,
+            base_light.elevation_deg,
+        ))
+    });
+    let absent: Vec<&'static str> = ["exposure", "vignetting", "gamma", "blur"]
+        .into_iter()
+        .filter(|n| !has(model, n))
+        .collect();
+    let present: Vec<&'static str> = ["exposure", "vignetting", "gamma", "blur"]
+        .into_iter()
+        .filter(|n| has(model, n))
+        .collect();
+    let cv_of = |s: &photometry::Samples, set: &[&str]| {
+        cross_validate(ctx.n_folds, &|hold| {
+            let f = photometry::fit(s, set, &|fold| Some(fold) != hold);
+            photometry::mse(s, &f.params, &|fold| hold.is_none_or(|h| fold == h))
+        })
+    };
+    let mut cands = Vec::new();
+    for with_shadows in [false, true] {
+        let s = match (with_shadows, &shadowed) {
+            (false, _) => &plain,
+            (true, Some(s)) => s,
+            (true, None) => continue,
+        };
+        for set in subsets(&absent) {
+            let mut all = set.clone();
+            all.extend(&present);
+            let cv = cv_of(s, &all);
+            let mut effects = set.clone();
+            if with_shadows {
+                effects.push("shadows");
+            }
+            cands.push(Candidate {
+                k: photometry::free(&set).len() + if with_shadows { 2 } else { 0 },
+                effects,
+                cv_error: cv,
+            });
+        }
+    }
+    let Some(choice) = choose(&cands, min_share) else {
+        return scored(&cands);
+    };
+    let chosen = cands[choice.index].effects.clone();
+    let uses_shadows = chosen.contains(&"shadows");
+    let mut fit_set: Vec<&str> = chosen.iter().copied().filter(|e| *e != "shadows").collect();
+    fit_set.extend(&present);
+    let mut direction = (base_light.azimuth_deg, base_light.elevation_deg);
+    let mut s = if uses_shadows {
+        shadowed.clone().unwrap_or_default()
+    } else {
+        plain
+    };
+    if uses_shadows {
+        // Coordinate search of the light direction around the campaign light.
+        let mut best = photometry::fit(&s, &fit_set, &|_| true).mse;
+        for step in [4.0, 2.0, 1.0, 0.5] {
+            for axis in 0..2 {
+                for sign in [-1.0, 1.0] {
+                    let mut d = direction;
+                    if axis == 0 {
+                        d.0 += sign * step;
+                    } else {
+                        d.1 = (d.1 + sign * step).clamp(5.0, 89.0);
+                    }
+                    let trial = samples_of(&shadows_at(d.0, d.1));
+                    let e = photometry::fit(&trial, &fit_set, &|_| true).mse;
+                    if e < best {
+                        best = e;
+                        direction = d;
+                        s = trial;
+                    }
+                }
+            }
+        }
+    }
+    let f = photometry::fit(&s, &fit_set, &|_| true);
+    let p = f.params;
+    let built = |name: &str| -> Option<(Effect, BTreeMap<String, f64>)> {
+        let (e, idx): (Effect, &[usize]) = match name {
+            "exposure" => (
+                Effect::Exposure {
+                    gain: p[0],
+                    offset: p[1],
+                },
+                &[0, 1],
+            ),
+            "vignetting" => (Effect::Vignetting { strength: p[2] }, &[2]),
+            "gamma" => (Effect::Gamma { gamma: p[3] }, &[3]),
+            "blur" => (Effect::Blur { sigma_px: p[4] }, &[4]),
+            "shadows" => (
+                Effect::Shadows {
+                    azimuth_deg: direction.0.rem_euclid(360.0),
+                    elevation_deg: direction.1,
+                },
+                &[],
+            ),
+            _ => return None,
+        };
+        let names = ["gain", "offset", "strength", "gamma", "sigma_px"];
+        Some((
+            e,
+            idx.iter()
+                .map(|&i| (names[i].to_string(), f.std_err[i]))
+                .collect(),
+        ))
+    };
+    for name in chosen.iter().chain(&present) {
+        if let Some((e, _)) = built(name) {
+            upsert(model, e);
+        }
+    }
+    let base_err = cands
+        .iter()
+        .find(|c| c.effects.is_empty())
+        .map_or(0.0, |c| c.cv_error);
+    for (name, share) in &choice.explained {
+        if let Some((e, errs)) = built(name) {
+            out.push(named(
+                &e,
+                errs,
+                *share,
+                "photometry",
+                format!(
+                    "held-out photometric MSE {:.1} DN² with no effect, {:.1} DN² with the chosen set",
+                    base_err, cands[choice.index].cv_error
+                ),
+            ));
+        }
+    }
+    scored(&cands)
+}
+
+/// Stage 3: noise from the repeat frames. Updates `model`.
+fn noise_stage(ctx: &Ctx<'_>, preds: &[Prediction], model: &mut SensorModel, out: &mut Vec<Named>) {
+    if has(model, "noise") {
+        return;
+    }
+    let pairs: Vec<(&[f32], &[f32], &[bool])> = ctx
+        .views
+        .iter()
+        .zip(preds)
+        .filter(|(v, _)| v.frames.len() >= 2)
+        .map(|(v, p)| {
+            (
+                v.frames[0].as_slice(),
+                v.frames[1].as_slice(),
+                p.mask.as_slice(),
+            )
+        })
+        .collect();
+    let Some(fit) = noise::measure(&pairs) else {
+        return;
+    };
+    if fit.sigma_at_128 <= noise::NOISE_FLOOR_DN {
+        return;
+    }
+    let e = Effect::Noise {
+        gain: fit.gain,
+        read_sigma: fit.read_sigma,
+    };
+    upsert(model, e);
+    let share = 1.0 - (noise::NOISE_FLOOR_DN / fit.sigma_at_128).powi(2);
+    out.push(named(
+        &e,
+        BTreeMap::new(),
+        share,
+        "noise",
+        format!(
+            "repeat frames: noise σ {:.2} DN at DN 128 > nominal {:.1} DN",
+            fit.sigma_at_128,
+            noise::NOISE_FLOOR_DN
+        ),
+    ));
+}
+
+/// Runs the gap workflow on `entry` (see the module docs).
+pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResult, ReaderError> {
+    let geometry_data = entry_geometry(view, entry)?;
+    let views = load_views(view, &opts.captures)?;
+    let f = folds(&views);
+    let n_folds = f.iter().max().map_or(1, |m| m + 1);
+    let ctx = Ctx {
+        scene: Scene::new(&geometry_data),
+        light: campaign_light(view)?,
+        views,
+        folds: f,
+        n_folds,
+        supersample: opts.supersample.max(1),
+    };
+    let model_before = stored_model(view, entry)?;
+    let preds_before = ctx.predict_all(&model_before);
+    let metrics_before = measure::measure(&ctx.views, &preds_before, &model_before);
+    let mut model = model_before.clone();
+    let mut found = Vec::new();
+    let mut candidates = BTreeMap::new();
+    candidates.insert(
+        "geometry".to_string(),
+        geometry_stage(&ctx, &mut model, opts.min_share, &mut found),
+    );
+    candidates.insert(
+        "photometry".to_string(),
+        photometry_stage(&ctx, &mut model, opts.min_share, &mut found),
+    );
+    noise_stage(&ctx, &preds_before, &mut model, &mut found);
+    let preds_after = ctx.predict_all(&model);
+    let metrics_after = measure::measure(&ctx.views, &preds_after, &model);
+    Ok(GapResult {
+        release_id: view.id.to_hex(),
+        entry: entry.to_string(),
+        gap_metric: "photometric_rms_dn".into(),
+        gap_before: metrics_before.photometric_rms_dn,
+        gap_after: metrics_after.photometric_rms_dn,
+        named: found,
+        metrics_before,
+        metrics_after,
+        model_before,
+        model_after: model,
+        candidates,
+    })
+}

@@ -1,0 +1,148 @@
+//! Choosing a set of effects jointly, by cross-validated error with a significance rule.
+//!
+//! Every subset of a stage's candidate effects is fitted on all captures but one and scored on
+//! the held-out capture (mean over folds): over-fitting costs on held-out data, so no explicit
+//! parameter penalty is needed for that. A subset is **admissible** when each of its members
+//! is significant: dropping it raises the held-out error by at least `min_share` of the
+//! stage's error with no effect (its *explained fraction*). The admissible subset with the
+//! lowest held-out error wins; ties go to fewer parameters. The empty set is always admissible,
+//! so when nothing explains a significant share, nothing is named.
+
+/// A fitted subset of effects.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// Effect names in the subset (catalogue names).
+    pub effects: Vec<&'static str>,
+    /// Number of free parameters.
+    pub k: usize,
+    /// Held-out error (mean over folds).
+    pub cv_error: f64,
+}
+
+/// The chosen subset and each member's explained fraction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Choice {
+    /// Index into the candidates.
+    pub index: usize,
+    /// `(effect, explained fraction)` of each member.
+    pub explained: Vec<(&'static str, f64)>,
+}
+
+fn without<'a>(cands: &'a [Candidate], set: &[&'static str], drop: &str) -> Option<&'a Candidate> {
+    cands.iter().find(|c| {
+        c.effects.len() + 1 == set.len()
+            && set
+                .iter()
+                .filter(|e| **e != drop)
+                .all(|e| c.effects.contains(e))
+    })
+}
+
+/// Chooses among `cands` (which must contain the empty set and every subset of the largest
+/// one); `None` if the empty set is missing.
+pub fn choose(cands: &[Candidate], min_share: f64) -> Option<Choice> {
+    let base = cands.iter().position(|c| c.effects.is_empty())?;
+    let baseline = cands[base].cv_error.max(1e-12);
+    let mut order: Vec<usize> = (0..cands.len()).collect();
+    order.sort_by(|&a, &b| {
+        cands[a]
+            .cv_error
+            .total_cmp(&cands[b].cv_error)
+            .then(cands[a].k.cmp(&cands[b].k))
+    });
+    for i in order {
+        let c = &cands[i];
+        let explained: Option<Vec<(&'static str, f64)>> = c
+            .effects
+            .iter()
+            .map(|&e| {
+                let w = without(cands, &c.effects, e)?;
+                Some((e, (w.cv_error - c.cv_error) / baseline))
+            })
+            .collect();
+        match explained {
+            Some(ex) if ex.iter().all(|(_, s)| *s >= min_share) => {
+                return Some(Choice {
+                    index: i,
+                    explained: ex,
+                })
+            }
+            _ => {}
+        }
+    }
+    Some(Choice {
+        index: base,
+        explained: Vec::new(),
+    })
+}
+
+/// Every subset of `names` (the empty one first).
+pub fn subsets(names: &[&'static str]) -> Vec<Vec<&'static str>> {
+    (0u32..1 << names.len())
+        .map(|bits| {
+            names
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| bits & (1 << i) != 0)
+                .map(|(_, n)| *n)
+                .collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn c(effects: &[&'static str], cv_error: f64) -> Candidate {
+        Candidate {
+            effects: effects.to_vec(),
+            k: effects.len(),
+            cv_error,
+        }
+    }
+
+    #[test]
+    fn names_nothing_when_no_member_is_significant() {
+        let cands = [
+            c(&[], 10.0),
+            c(&["a"], 9.8),
+            c(&["b"], 9.9),
+            c(&["a", "b"], 9.7),
+        ];
+        let ch = choose(&cands, 0.05).unwrap();
+        assert!(cands[ch.index].effects.is_empty());
+    }
+
+    #[test]
+    fn prefers_the_joint_set_when_both_members_matter() {
+        let cands = [
+            c(&[], 10.0),
+            c(&["a"], 6.0),
+            c(&["b"], 7.0),
+            c(&["a", "b"], 2.0),
+        ];
+        let ch = choose(&cands, 0.05).unwrap();
+        assert_eq!(cands[ch.index].effects, vec!["a", "b"]);
+        assert!((ch.explained[0].1 - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn drops_a_passenger() {
+        // b alone helps (it masquerades as a), but with a it adds nothing.
+        let cands = [
+            c(&[], 10.0),
+            c(&["a"], 2.0),
+            c(&["b"], 5.0),
+            c(&["a", "b"], 1.99),
+        ];
+        let ch = choose(&cands, 0.05).unwrap();
+        assert_eq!(cands[ch.index].effects, vec!["a"]);
+    }
+
+    #[test]
+    fn subsets_are_complete() {
+        assert_eq!(subsets(&["a", "b"]).len(), 4);
+        assert!(subsets(&["a", "b", "c"]).contains(&vec!["a", "c"]));
+    }
+}

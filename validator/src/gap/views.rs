@@ -1,0 +1,157 @@
+//! The views the gap workflow compares: every (capture, camera) with its real frames, and the
+//! prediction of the simulation for a given sensor model.
+//!
+//! The real side is the **mean of the frames** of a pose (halving the noise variance that no
+//! deterministic model can predict), and their difference gives the sensor noise directly. The
+//! simulated side is the entry rendered through [`SensorModel`] *without* its noise (the
+//! expected image): geometry effects move the camera and its distortion, `shadows` turns on
+//! cast shadows of the campaign light, image effects map radiance to digital numbers.
+//!
+//! A `pose-bias` is applied to every camera's own `ground_from_camera`; for the right camera of a
+//! stereo rig the exact bias is the left bias conjugated by the 10 cm baseline, which differs by
+//! less than 1 mm for the catalogue's ±0.5° range (documented in `format-spec/registry.md`).
+
+use regolith_format::camera_model::CameraModel;
+use regolith_format::frames::Pose;
+use regolith_reader::captures::ImageKind;
+use regolith_reader::heightfield::decode_grey_png;
+use regolith_reader::{ReaderError, ReleaseView};
+
+use crate::render::{Light, Scene};
+use crate::sensor::SensorModel;
+
+/// One (capture, camera) pair with its real frames.
+#[derive(Debug, Clone)]
+pub struct GapView {
+    /// Capture name.
+    pub capture: String,
+    /// Camera name.
+    pub camera: String,
+    /// The calibrated camera.
+    pub camera_model: CameraModel,
+    /// The measured `ground_from_camera`.
+    pub ground_from_camera: Pose,
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Real frames, DN (0–255) as floats; at least one.
+    pub frames: Vec<Vec<f32>>,
+}
+
+impl GapView {
+    /// Mean of the real frames.
+    pub fn mean(&self) -> Vec<f32> {
+        let k = self.frames.len().max(1) as f32;
+        let mut out = vec![0.0f32; self.width * self.height];
+        for f in &self.frames {
+            for (o, v) in out.iter_mut().zip(f) {
+                *o += v / k;
+            }
+        }
+        out
+    }
+}
+
+/// What the simulation predicts for one view.
+#[derive(Debug, Clone)]
+pub struct Prediction {
+    /// Linear radiance of the render (before image effects).
+    pub radiance: Vec<f32>,
+    /// Expected digital numbers (image effects without noise), unclamped.
+    pub dn: Vec<f32>,
+    /// Camera-frame depth, metres; `NaN` off terrain.
+    pub depth: Vec<f32>,
+    /// The render sees terrain.
+    pub mask: Vec<bool>,
+    /// The camera the render used (calibration + the model's distortion).
+    pub camera: CameraModel,
+}
+
+fn err(entry: &str, message: String) -> ReaderError {
+    ReaderError::Decode {
+        entry: entry.to_string(),
+        what: "gap input",
+        message,
+    }
+}
+
+/// Loads every (capture, camera) of the release's `captures` entry, optionally only the named
+/// captures.
+pub fn load_views(view: &ReleaseView, only: &[String]) -> Result<Vec<GapView>, ReaderError> {
+    let caps = view.captures("captures")?;
+    let mut images = caps.images()?;
+    images.retain(|i| i.kind == ImageKind::Raw && (only.is_empty() || only.contains(&i.capture)));
+    images.sort_by(|a, b| (&a.capture, &a.camera, a.frame).cmp(&(&b.capture, &b.camera, b.frame)));
+    let mut out: Vec<GapView> = Vec::new();
+    for img in images {
+        let g = decode_grey_png(&img.data, 32_768).map_err(|m| err("captures", m))?;
+        let scale = if g.bit_depth == 16 { 257.0 } else { 1.0 };
+        let data: Vec<f32> = g.samples.iter().map(|&v| f32::from(v) / scale).collect();
+        let (w, h) = (g.width as usize, g.height as usize);
+        match out.last_mut() {
+            Some(v) if v.capture == img.capture && v.camera == img.camera => {
+                if (v.width, v.height) != (w, h) {
+                    return Err(err(
+                        "captures",
+                        format!("{} {}: frames of different sizes", img.capture, img.camera),
+                    ));
+                }
+                v.frames.push(data);
+            }
+            _ => {
+                let camera_model = view.camera(&format!("cameras/{}", img.camera))?;
+                if (camera_model.width as usize, camera_model.height as usize) != (w, h) {
+                    return Err(err(
+                        "captures",
+                        format!(
+                            "{} {}: image {w}x{h} but calibration {}x{}",
+                            img.capture, img.camera, camera_model.width, camera_model.height
+                        ),
+                    ));
+                }
+                out.push(GapView {
+                    capture: img.capture.clone(),
+                    camera: img.camera.clone(),
+                    camera_model,
+                    ground_from_camera: img.ground_from_camera,
+                    width: w,
+                    height: h,
+                    frames: vec![data],
+                });
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(err(
+            "captures",
+            "no raw capture images to compare with".into(),
+        ));
+    }
+    Ok(out)
+}
+
+/// Renders `v` through `model` without noise (see the module docs).
+pub fn predict(
+    scene: &Scene<'_>,
+    light: &Light,
+    v: &GapView,
+    model: &SensorModel,
+    supersample: u32,
+) -> Prediction {
+    let r = model.render(
+        scene,
+        light,
+        &v.camera_model,
+        &v.ground_from_camera,
+        supersample,
+        None,
+    );
+    Prediction {
+        mask: r.rendered.mask.iter().map(|&m| m == 255).collect(),
+        radiance: r.rendered.radiance,
+        dn: r.dn,
+        depth: r.rendered.depth,
+        camera: r.camera,
+    }
+}
