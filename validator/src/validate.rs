@@ -145,7 +145,8 @@ fn decode_err(entry: &str, message: String) -> ReaderError {
     }
 }
 
-fn grey(png: &[u8], entry: &str) -> Result<GreyF32, ReaderError> {
+/// Decodes an 8- or 16-bit grey PNG to values in 0–1; errors name `entry`.
+pub(crate) fn grey(png: &[u8], entry: &str) -> Result<GreyF32, ReaderError> {
     let g = decode_grey_png(png, 32_768).map_err(|m| decode_err(entry, m))?;
     let scale = if g.bit_depth == 16 { 65535.0 } else { 255.0 };
     GreyF32::new(

@@ -14,11 +14,11 @@
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
 use regolith_reader::captures::ImageKind;
-use regolith_reader::heightfield::decode_grey_png;
 use regolith_reader::{ReaderError, ReleaseView};
 
 use crate::render::{Light, Scene};
 use crate::sensor::SensorModel;
+use crate::validate::grey;
 
 /// One (capture, camera) pair with its real frames.
 #[derive(Debug, Clone)]
@@ -85,10 +85,9 @@ pub fn load_views(view: &ReleaseView, only: &[String]) -> Result<Vec<GapView>, R
     images.sort_by(|a, b| (&a.capture, &a.camera, a.frame).cmp(&(&b.capture, &b.camera, b.frame)));
     let mut out: Vec<GapView> = Vec::new();
     for img in images {
-        let g = decode_grey_png(&img.data, 32_768).map_err(|m| err("captures", m))?;
-        let scale = if g.bit_depth == 16 { 257.0 } else { 1.0 };
-        let data: Vec<f32> = g.samples.iter().map(|&v| f32::from(v) / scale).collect();
-        let (w, h) = (g.width as usize, g.height as usize);
+        let g = grey(&img.data, "captures")?;
+        let (w, h) = (g.width, g.height);
+        let data: Vec<f32> = g.data.iter().map(|v| v * 255.0).collect();
         match out.last_mut() {
             Some(v) if v.capture == img.capture && v.camera == img.camera => {
                 if (v.width, v.height) != (w, h) {

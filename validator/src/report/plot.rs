@@ -15,6 +15,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
@@ -539,6 +540,20 @@ fn tick(v: &f64) -> String {
     }
 }
 
+/// The legend box of every chart: upper right, small font, translucent white.
+fn draw_legend<'a, 'b: 'a>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font(("sans-serif", 12))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(180, 180, 180))
+        .draw()
+        .map_err(e)
+}
+
 fn e<T: std::fmt::Display>(x: T) -> String {
     x.to_string()
 }
@@ -619,14 +634,7 @@ pub fn line_plot_axes(path: &Path, axes: &Axes, series: &[Series]) -> Result<(),
             }
         }
         if legend {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .label_font(("sans-serif", 12))
-                .background_style(WHITE.mix(0.85))
-                .border_style(RGBColor(180, 180, 180))
-                .draw()
-                .map_err(e)?;
+            draw_legend(&mut chart)?;
         }
         Ok(())
     })
@@ -768,14 +776,7 @@ pub fn bar_chart(
                 .map_err(e)?;
         }
         if groups.iter().any(|g| !g.label.is_empty()) || reference.iter().any(|r| !r.0.is_empty()) {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .label_font(("sans-serif", 12))
-                .background_style(WHITE.mix(0.85))
-                .border_style(RGBColor(180, 180, 180))
-                .draw()
-                .map_err(e)?;
+            draw_legend(&mut chart)?;
         }
         Ok(())
     })
