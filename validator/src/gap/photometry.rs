@@ -1,40 +1,44 @@
-//! Stage 2 of attribution: the photometric effects `exposure`, `vignetting`, `gamma` and `blur`
-//! fitted jointly, with and without `shadows`.
+//! Stage 2 of attribution: the photometric effects `exposure`, `vignetting` and `gamma` fitted
+//! jointly, with and without `shadows`.
 //!
 //! The model of a real pixel is the camera's, in its physical order (see
-//! [`crate::sensor::image`]): `DN = 255 · max(0, g · V_s(u, v) · (B_σ ∗ R) + o)^(1/γ)`, with `R` the
+//! [`crate::sensor::image`]): `DN = 255 · max(0, g · V_s(u, v) · (B ∗ R) + o)^(1/γ)`, with `R` the
 //! rendered radiance (with or without cast shadows), `V_s` the vignetting falloff of strength
-//! `s`, `B_σ` the Gaussian PSF. Vignetting is smooth, so `B_σ ∗ (V R) ≈ V (B_σ ∗ R)`; the
-//! blurred radiance is precomputed at σ = 0, 0.25, … 3 px and interpolated linearly in σ, which
-//! makes σ an ordinary parameter of the joint least-squares fit (blur and the response curve
-//! masquerade as each other when fitted one at a time; here they are fitted together).
+//! `s` and `B` the PSF measured on the skyline beforehand ([`super::blur`]; vignetting is
+//! smooth, so `B ∗ (V R) ≈ V (B ∗ R)`). Vignetting, exposure and the response curve are only
+//! jointly identifiable, so they are fitted together, never one after the other.
 //!
-//! Samples are taken on a regular grid inside the render's terrain mask eroded by 4 px (so a
-//! silhouette misaligned by a few pixels does not count), where the real mean is neither black
-//! nor saturated. The real side is the mean of the frames, so noise enters only as variance.
+//! Both images are low-passed by a Gaussian of σ 4 px before they are compared (the render on
+//! top of the PSF). A terrain entry's render has pixel-scale noise of its own (DEM range noise
+//! in the normals, reflectance speckle) that is uncorrelated with the real image; fitted
+//! unfiltered, that noise attenuates the fitted gain (errors in variables) and passes for an
+//! exposure or contrast change. The photometric effects are smooth or pointwise, so the
+//! low-pass keeps them. Samples are taken on a regular grid inside the render's terrain mask
+//! eroded by 10 px (no sky mixes into the filtered values, and a silhouette misaligned by a few
+//! pixels does not count), where the real mean is neither black nor saturated. The real side is
+//! the mean of the frames, so noise enters only as variance.
 
 use crate::sensor::gaussian_blur;
 
 use super::lsq::{solve, Problem};
 use super::views::{GapView, Prediction};
 
-/// σ grid of the precomputed blurs, px.
-const SIGMA_STEP: f64 = 0.25;
-const SIGMAS: usize = 13;
 /// Sample grid stride, pixels.
 const STRIDE: usize = 6;
-const ERODE: usize = 4;
+/// Analysis low-pass applied to both images, px (see the module docs).
+const ANALYSIS_SIGMA: f64 = 8.0;
+const ERODE: usize = 16;
 
-/// The photometric samples of one view.
+/// The photometric samples of several views.
 #[derive(Debug, Clone, Default)]
 pub struct Samples {
     /// Fold (capture index) of each sample.
     pub fold: Vec<usize>,
     /// Real mean DN.
     pub real: Vec<f64>,
-    /// Blurred radiance at each σ of the grid, `SIGMAS` values per sample.
-    pub radiance: Vec<[f64; SIGMAS]>,
-    /// Vignetting factor at strength 0.5 (the falloff shape; other strengths are derived).
+    /// Rendered radiance after the PSF.
+    pub radiance: Vec<f64>,
+    /// Squared distance from the principal point over the squared farthest-corner distance.
     pub rho2: Vec<f64>,
 }
 
@@ -49,13 +53,16 @@ impl Samples {
         self.real.is_empty()
     }
 
-    /// Appends the samples of one view.
-    pub fn add(&mut self, fold: usize, v: &GapView, p: &Prediction) {
+    /// Appends the samples of one view, its radiance blurred by a Gaussian PSF of `sigma_px`.
+    pub fn add(&mut self, fold: usize, v: &GapView, p: &Prediction, sigma_px: f64) {
         let (w, h) = (v.width, v.height);
-        let real = v.mean();
-        let blurred: Vec<Vec<f32>> = (0..SIGMAS)
-            .map(|i| gaussian_blur(&p.radiance, w, h, i as f64 * SIGMA_STEP))
-            .collect();
+        let real = gaussian_blur(&v.mean(), w, h, ANALYSIS_SIGMA);
+        let blurred = gaussian_blur(
+            &p.radiance,
+            w,
+            h,
+            (sigma_px * sigma_px + ANALYSIS_SIGMA * ANALYSIS_SIGMA).sqrt(),
+        );
         let eroded = erode(&p.mask, w, h, ERODE);
         let cam = &v.camera_model;
         let corner2 = [
@@ -74,13 +81,9 @@ impl Samples {
                 if !eroded[i] || !(2.0..=253.0).contains(&r) {
                     continue;
                 }
-                let mut rad = [0.0; SIGMAS];
-                for (k, b) in blurred.iter().enumerate() {
-                    rad[k] = f64::from(b[i]);
-                }
                 self.fold.push(fold);
                 self.real.push(r);
-                self.radiance.push(rad);
+                self.radiance.push(f64::from(blurred[i]));
                 self.rho2
                     .push(((x as f64 - cam.cx).powi(2) + (y as f64 - cam.cy).powi(2)) / corner2);
             }
@@ -108,21 +111,22 @@ pub fn erode(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
 }
 
 /// Parameters of the joint model, in this order.
-pub const PARAMS: [&str; 5] = ["gain", "offset", "strength", "gamma", "sigma_px"];
+pub const PARAMS: [&str; 4] = ["gain", "offset", "strength", "gamma"];
 /// Neutral values.
-pub const NEUTRAL: [f64; 5] = [1.0, 0.0, 0.0, 1.0, 0.0];
-const LOWER: [f64; 5] = [0.3, -0.2, 0.0, 0.5, 0.0];
-const UPPER: [f64; 5] = [2.0, 0.2, 0.9, 3.5, 3.0];
-const STEP: [f64; 5] = [1e-5, 1e-5, 1e-5, 1e-5, 1e-4];
+pub const NEUTRAL: [f64; 4] = [1.0, 0.0, 0.0, 1.0];
+const LOWER: [f64; 4] = [0.3, -0.2, 0.0, 0.5];
+const UPPER: [f64; 4] = [2.0, 0.2, 0.9, 3.5];
+const STEP: [f64; 4] = [1e-5, 1e-5, 1e-5, 1e-5];
 
-/// The free parameters of a subset of {`exposure`, `vignetting`, `gamma`, `blur`}.
+/// The free parameters of a subset of {`exposure`, `vignetting`, `gamma`}; `gain` alone frees
+/// the exposure gain without its offset (the level nuisance of every final fit).
 pub fn free(effects: &[&str]) -> Vec<usize> {
     let mut out = Vec::new();
     for (name, idx) in [
         ("exposure", &[0usize, 1][..]),
         ("vignetting", &[2]),
         ("gamma", &[3]),
-        ("blur", &[4]),
+        ("gain", &[0]),
     ] {
         if effects.contains(&name) {
             out.extend_from_slice(idx);
@@ -132,11 +136,8 @@ pub fn free(effects: &[&str]) -> Vec<usize> {
 }
 
 /// Predicted DN of sample `i` at full parameters `p`.
-pub fn predict(s: &Samples, i: usize, p: &[f64; 5]) -> f64 {
-    let t = (p[4] / SIGMA_STEP).clamp(0.0, (SIGMAS - 1) as f64);
-    let k = (t.floor() as usize).min(SIGMAS - 2);
-    let f = t - k as f64;
-    let rad = s.radiance[i][k] * (1.0 - f) + s.radiance[i][k + 1] * f;
+pub fn predict(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
+    let rad = s.radiance[i];
     let strength = p[2].clamp(0.0, 0.999_999);
     let c = (1.0 - strength).powf(-0.5) - 1.0;
     let v = 1.0 / (1.0 + c * s.rho2[i]).powi(2);
@@ -153,9 +154,9 @@ pub fn predict(s: &Samples, i: usize, p: &[f64; 5]) -> f64 {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PhotometricFit {
     /// Full parameter vector (inactive ones neutral).
-    pub params: [f64; 5],
+    pub params: [f64; 4],
     /// Standard errors (inactive ones 0).
-    pub std_err: [f64; 5],
+    pub std_err: [f64; 4],
     /// Mean squared error on the fitted samples, DN².
     pub mse: f64,
 }
@@ -190,7 +191,7 @@ pub fn fit(
         },
         60,
     );
-    let mut std_err = [0.0; 5];
+    let mut std_err = [0.0; 4];
     for (&i, e) in idx.iter().zip(&sol.std_err) {
         std_err[i] = *e;
     }
@@ -202,7 +203,7 @@ pub fn fit(
 }
 
 /// Mean squared error (DN²) at `p` on the samples whose fold passes `use_fold`.
-pub fn mse(s: &Samples, p: &[f64; 5], use_fold: &dyn Fn(usize) -> bool) -> f64 {
+pub fn mse(s: &Samples, p: &[f64; 4], use_fold: &dyn Fn(usize) -> bool) -> f64 {
     let (mut sum, mut n) = (0.0, 0usize);
     for i in (0..s.len()).filter(|&i| use_fold(s.fold[i])) {
         sum += (predict(s, i, p) - s.real[i]).powi(2);

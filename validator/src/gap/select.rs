@@ -4,7 +4,9 @@
 //! the held-out capture (mean over folds): over-fitting costs on held-out data, so no explicit
 //! parameter penalty is needed for that. A subset is **admissible** when each of its members
 //! is significant: dropping it raises the held-out error by at least `min_share` of the
-//! stage's error with no effect (its *explained fraction*). The admissible subset with the
+//! stage's error with no effect (its *explained fraction*) and by at least `min_abs` in the
+//! stage's own units (so that a tiny disagreement, where a small change is a large share, does
+//! not name an effect too small to matter). The admissible subset with the
 //! lowest held-out error wins; ties go to fewer parameters. The empty set is always admissible,
 //! so when nothing explains a significant share, nothing is named.
 
@@ -40,7 +42,7 @@ fn without<'a>(cands: &'a [Candidate], set: &[&'static str], drop: &str) -> Opti
 
 /// Chooses among `cands` (which must contain the empty set and every subset of the largest
 /// one); `None` if the empty set is missing.
-pub fn choose(cands: &[Candidate], min_share: f64) -> Option<Choice> {
+pub fn choose(cands: &[Candidate], min_share: f64, min_abs: f64) -> Option<Choice> {
     let base = cands.iter().position(|c| c.effects.is_empty())?;
     let baseline = cands[base].cv_error.max(1e-12);
     let mut order: Vec<usize> = (0..cands.len()).collect();
@@ -57,15 +59,20 @@ pub fn choose(cands: &[Candidate], min_share: f64) -> Option<Choice> {
             .iter()
             .map(|&e| {
                 let w = without(cands, &c.effects, e)?;
-                Some((e, (w.cv_error - c.cv_error) / baseline))
+                Some((e, w.cv_error - c.cv_error))
             })
             .collect();
         match explained {
-            Some(ex) if ex.iter().all(|(_, s)| *s >= min_share) => {
+            Some(ex)
+                if ex
+                    .iter()
+                    .all(|(_, d)| *d >= min_share * baseline && *d >= min_abs) =>
+            {
+                let ex = ex.into_iter().map(|(e, d)| (e, d / baseline)).collect();
                 return Some(Choice {
                     index: i,
                     explained: ex,
-                })
+                });
             }
             _ => {}
         }
@@ -110,7 +117,7 @@ mod tests {
             c(&["b"], 9.9),
             c(&["a", "b"], 9.7),
         ];
-        let ch = choose(&cands, 0.05).unwrap();
+        let ch = choose(&cands, 0.05, 0.0).unwrap();
         assert!(cands[ch.index].effects.is_empty());
     }
 
@@ -122,7 +129,7 @@ mod tests {
             c(&["b"], 7.0),
             c(&["a", "b"], 2.0),
         ];
-        let ch = choose(&cands, 0.05).unwrap();
+        let ch = choose(&cands, 0.05, 0.0).unwrap();
         assert_eq!(cands[ch.index].effects, vec!["a", "b"]);
         assert!((ch.explained[0].1 - 0.5).abs() < 1e-12);
     }
@@ -136,8 +143,20 @@ mod tests {
             c(&["b"], 5.0),
             c(&["a", "b"], 1.99),
         ];
-        let ch = choose(&cands, 0.05).unwrap();
+        let ch = choose(&cands, 0.05, 0.0).unwrap();
         assert_eq!(cands[ch.index].effects, vec!["a"]);
+    }
+
+    #[test]
+    fn a_tiny_absolute_improvement_is_not_named() {
+        let cands = [c(&[], 1.0), c(&["a"], 0.5)];
+        assert_eq!(
+            cands[choose(&cands, 0.05, 0.0).unwrap().index].effects,
+            vec!["a"]
+        );
+        assert!(cands[choose(&cands, 0.05, 2.0).unwrap().index]
+            .effects
+            .is_empty());
     }
 
     #[test]
