@@ -124,7 +124,7 @@ fn param(v: &Value, effect: &str, name: &str) -> f64 {
         .unwrap()
         .iter()
         .find(|n| n["effect"] == effect)
-        .unwrap_or_else(|| panic!("{effect} not named: {:?}", named(&v)));
+        .unwrap_or_else(|| panic!("{effect} not named: {:?}", named(v)));
     n["params"][name].as_f64().unwrap()
 }
 
