@@ -185,3 +185,23 @@ fn nominal_noise_is_not_named() {
     let v = regolith(&["gap", &db, "--entry", "laser/0.01", "--captures", "loc01"]);
     assert!(!named(&v).contains(&"noise".to_string()), "{:?}", named(&v));
 }
+
+#[test]
+fn the_demo_finds_its_hidden_vignetting_and_shrinks_the_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let campaign = Path::new(env!("CARGO_MANIFEST_DIR")).join("../corpus/demo");
+    let v = regolith(&[
+        "demo",
+        "--campaign",
+        campaign.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let gap = &v["gap"];
+    let truth = gap["hidden_truth"][0]["strength"].as_f64().unwrap();
+    let fitted = gap["named"][0]["params"]["strength"].as_f64().unwrap();
+    assert_eq!(gap["named"][0]["effect"], "vignetting");
+    assert!((fitted - truth).abs() < 0.05 * truth, "{fitted} vs {truth}");
+    assert!(gap["gap_after"].as_f64().unwrap() < gap["gap_before"].as_f64().unwrap());
+    assert!(gap["applied"].as_str().unwrap().ends_with("+gap.1"));
+}

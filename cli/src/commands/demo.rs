@@ -1,5 +1,7 @@
 //! `regolith demo`: compile the checked-in demo campaign into `<out>/db`, validate every
-//! heightfield against the real captures (certificates into the database), verify, and print
+//! heightfield against the real captures (certificates into the database), run one round of the
+//! gap workflow on the finest laser entry (the hidden effect is named, written into a child
+//! release, and the gap before/after printed next to the campaign's truth), verify, and print
 //! where everything is. The demo campaign is a `mini` corpus campaign with ground truth.
 
 use std::path::Path;
@@ -8,6 +10,7 @@ use anyhow::Context;
 use regolith_compiler::compile;
 use regolith_format::kinds;
 use regolith_reader::{verify, Database, Writer};
+use regolith_validator::gap::{self, apply, GapOptions};
 use regolith_validator::validate::{validate_entry, ValidateOptions};
 
 use super::print_json;
@@ -44,11 +47,52 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
         writer.put_certificate(&view.id, &e.name, &cert)?;
         certificates.push(cert);
     }
+    // One round of the gap workflow on the finest laser entry: name the hidden effect, write it
+    // into a child release, show the gap before and after.
+    let finest = view
+        .entries()
+        .iter()
+        .filter(|e| e.kind == kinds::HEIGHTFIELD && e.name.starts_with("laser/"))
+        .min_by(|a, b| {
+            let cell = |e: &regolith_format::manifest::Entry| {
+                e.meta["cell_m"].as_f64().unwrap_or(f64::MAX)
+            };
+            cell(a).total_cmp(&cell(b))
+        })
+        .map(|e| e.name.clone());
+    let gap_round = match &finest {
+        Some(entry) => {
+            let result = gap::run(&view, entry, &GapOptions::default())?;
+            let applied = if result.named.is_empty() {
+                None
+            } else {
+                Some(apply::write_model(
+                    &writer,
+                    &view,
+                    entry,
+                    &result.model_after,
+                    serde_json::json!({"release": view.label(), "named": result.named.iter().map(|n| &n.effect).collect::<Vec<_>>()}),
+                )?)
+            };
+            Some((result, applied))
+        }
+        None => None,
+    };
+    let hidden: serde_json::Value = std::fs::read(campaign.join("truth/hidden.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok())
+        .unwrap_or_default();
     drop(writer);
     let report = verify(&db)?;
     if json {
         print_json(
-            &serde_json::json!({"db": db_path, "compile": summary, "verify_ok": report.ok()}),
+            &serde_json::json!({"db": db_path, "compile": summary, "verify_ok": report.ok(),
+            "gap": gap_round.as_ref().map(|(r, applied)| serde_json::json!({
+                "entry": r.entry, "named": r.named, "gap_metric": r.gap_metric,
+                "gap_before": r.gap_before, "gap_after": r.gap_after,
+                "applied": applied.as_ref().map(|(label, _)| label),
+                "hidden_truth": hidden["effects"],
+            }))}),
         )?;
     } else {
         println!(
@@ -77,6 +121,38 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
                 sift,
                 c.failures.len()
             );
+        }
+        if let Some((r, applied)) = &gap_round {
+            println!("  gap {}:", r.entry);
+            if r.named.is_empty() {
+                println!("    no effect explains a significant share of the gap");
+            }
+            for n in &r.named {
+                let params: Vec<String> = n
+                    .params
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v:.3}"))
+                    .collect();
+                println!(
+                    "    named {} ({}), explains {:.0} %",
+                    n.effect,
+                    params.join(", "),
+                    100.0 * n.explained_fraction
+                );
+            }
+            if let Some(truth) = hidden["effects"].as_array() {
+                println!(
+                    "    hidden in the demo campaign (truth/hidden.json): {}",
+                    serde_json::Value::Array(truth.clone())
+                );
+            }
+            println!(
+                "    {} {:.2} -> {:.2} DN",
+                r.gap_metric, r.gap_before, r.gap_after
+            );
+            if let Some((label, _)) = applied {
+                println!("    model written to release {label}");
+            }
         }
         println!("verify: {}", if report.ok() { "intact" } else { "CORRUPT" });
         println!("next: regolith inspect {} latest", db_path.display());

@@ -4,7 +4,7 @@
 //! `parent` is the examined one, with the same entries plus (or replacing) the `sensor-model`
 //! entry `<entry>/sensor-model` (role `model`, canonical JSON, `meta.entry` naming the terrain
 //! entry, `meta.fitted_by` the gap run's summary), and version `<version>+gap.<n>` with `n` the
-//! first free number. `validate` and simulators then use the model
+//! first free number; a child of the same release with the same model is reused. `validate` and simulators then use the model
 //! ([`crate::sensor::stored_model`]).
 
 use regolith_format::kinds;
@@ -25,6 +25,7 @@ pub fn write_model(
     summary: serde_json::Value,
 ) -> Result<(String, ObjectId), ReaderError> {
     let file = writer.put_json(model)?;
+    let object = file.object;
     let mut m = view.manifest.clone();
     m.parent = Some(view.id);
     let name = model_entry_name(entry);
@@ -41,6 +42,22 @@ pub fn write_model(
     m.entries.sort_by(|a, b| a.name.cmp(&b.name));
     let db = writer.database();
     let existing = db.releases()?;
+    // The same model already written as a child of this release: reuse it.
+    for (label, id) in &existing {
+        let child = db.release_by_id(id)?;
+        if child.manifest.parent == Some(view.id) {
+            if let Some(e) = child
+                .manifest
+                .entries
+                .iter()
+                .find(|e| e.name == model_entry_name(entry))
+            {
+                if e.files.get(kinds::roles::MODEL).map(|f| f.object) == Some(object) {
+                    return Ok((label.clone(), *id));
+                }
+            }
+        }
+    }
     let base = view.manifest.version.clone();
     let version = (1..)
         .map(|n| format!("{base}+gap.{n}"))
