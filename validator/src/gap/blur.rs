@@ -5,16 +5,21 @@
 //! of its own (laser range noise in the DEM's normals, reflectance speckle in its texture) that
 //! the real image does not have, and blurring the render removes that noise too, so a pixel fit
 //! finds "blur" on every entry. An occluding edge against the sky is different: in the render it
-//! is a step softened only by anti-aliasing, in the real image by the lens PSF as well, and its
+//! is a sharp step, in the real image it is softened by the lens PSF, and its
 //! width does not depend on where exactly the edge lies (each profile is measured on its own,
 //! so a small misalignment does not matter).
 //!
 //! For every column where the render's terrain mask starts below sky and the skyline is nearly
 //! horizontal (it moves at most 1 px over 4 columns), the vertical profile ±[`HALF`] px around
-//! it is differentiated; the second moment of that derivative is the edge's variance. The
-//! per-column difference real − render (paired, so terrain texture and slope cancel) has its
-//! median taken over all columns of all views: `σ² = median(var_real − var_render)`. The
-//! anti-aliasing of both images is the same box and cancels.
+//! it is fitted with a Gaussian-blurred step, which locates the edge to a fraction of a pixel
+//! and normalises its levels. The normalised samples of all profiles, each at its own sub-pixel
+//! phase, are pooled into one edge-spread function per image (the slanted-edge method of
+//! ISO 12233), whose σ is fitted once: a single profile cannot resolve σ below about 0.5 px, the
+//! pooled function can. `σ_blur² = σ_real² − σ_render²`, with the render point-sampled (no
+//! supersampling): a camera that integrates over its pixel area then shows that area's
+//! 1/12 px² as blur the point-sampled simulation lacks, which is what it is.
+
+use super::lsq::{solve, Problem};
 
 /// Half-height of an edge profile, px.
 pub const HALF: usize = 6;
@@ -28,9 +33,9 @@ const MIN_PROFILES: usize = 30;
 pub struct EdgeBlur {
     /// Gaussian PSF σ the real edges have in excess of the render's, px (0 when sharper).
     pub sigma_px: f64,
-    /// Median edge variance of the render, px² (anti-aliasing and geometry).
+    /// Edge variance of the render, px².
     pub render_var: f64,
-    /// Median edge variance of the real frames, px².
+    /// Edge variance of the real frames, px².
     pub real_var: f64,
     /// Profiles used.
     pub profiles: usize,
@@ -55,30 +60,86 @@ fn skyline(mask: &[bool], w: usize, h: usize) -> Vec<(usize, usize)> {
         .collect()
 }
 
-/// Variance of the edge at `(x, y0)` in `img`, `None` when the step is too weak.
-fn edge_variance(img: &[f32], w: usize, x: usize, y0: usize) -> Option<f64> {
-    let (mut s, mut sy, mut syy) = (0.0f64, 0.0f64, 0.0f64);
-    for y in y0 - HALF..y0 + HALF {
-        let d = f64::from(img[(y + 1) * w + x] - img[y * w + x]);
-        let t = y as f64 + 0.5;
-        s += d;
-        sy += d * t;
-        syy += d * t * t;
+/// `erf` (Abramowitz & Stegun 7.1.26, |error| < 1.5e-7).
+fn erf(x: f64) -> f64 {
+    let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
+    let poly = t
+        * (0.254_829_592
+            + t * (-0.284_496_736
+                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
+    let y = 1.0 - poly * (-x * x).exp();
+    if x < 0.0 {
+        -y
+    } else {
+        y
     }
-    if s < MIN_STEP {
-        return None;
-    }
-    let c = sy / s;
-    Some(syy / s - c * c)
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+/// The unit step blurred by a Gaussian of σ `s`, sampled at `t` (relative to the edge).
+fn step(t: f64, s: f64) -> f64 {
+    0.5 * (1.0 + erf(t / (s * std::f64::consts::SQRT_2)))
+}
+
+/// The profile of the edge at `(x, y0)` in `img`, normalised by its own fit: `(y − c, (v − a)
+/// / b)` pairs, `None` when the step is too weak. The fit is a blurred step
+/// `a + b · step(y − c, s)` over ±[`HALF`] px.
+fn edge_samples(img: &[f32], w: usize, x: usize, y0: usize) -> Option<Vec<(f64, f64)>> {
+    let ys: Vec<f64> = (y0 - HALF..=y0 + HALF).map(|y| y as f64).collect();
+    let vs: Vec<f64> = (y0 - HALF..=y0 + HALF)
+        .map(|y| f64::from(img[y * w + x]))
+        .collect();
+    let lo = vs[..HALF].iter().sum::<f64>() / HALF as f64;
+    let hi = vs[HALF + 1..].iter().sum::<f64>() / HALF as f64;
+    if hi - lo < MIN_STEP {
+        return None;
     }
+    let f = |p: &[f64], out: &mut Vec<f64>| {
+        out.clear();
+        out.extend(
+            ys.iter()
+                .zip(&vs)
+                .map(|(y, v)| p[0] + p[1] * step(y - p[2], p[3]) - v),
+        );
+    };
+    let y = y0 as f64;
+    let sol = solve(
+        &Problem {
+            residuals: &f,
+            start: vec![lo, hi - lo, y - 0.5, 0.8],
+            lower: vec![lo - 100.0, 1.0, y - 3.0, 0.02],
+            upper: vec![hi + 100.0, 512.0, y + 2.0, 4.0],
+            step: vec![1e-4, 1e-4, 1e-5, 1e-5],
+        },
+        30,
+    );
+    let p = &sol.params;
+    Some(
+        ys.iter()
+            .zip(&vs)
+            .map(|(y, v)| (y - p[2], (v - p[0]) / p[1]))
+            .filter(|(t, _)| t.abs() <= 4.0)
+            .collect(),
+    )
+}
+
+/// The σ of one pooled edge-spread function: the normalised samples of every profile (each at
+/// its own sub-pixel phase, as in the slanted-edge method) fitted with `step(t, s)`.
+fn pooled_sigma(samples: &[(f64, f64)]) -> f64 {
+    let f = |p: &[f64], out: &mut Vec<f64>| {
+        out.clear();
+        out.extend(samples.iter().map(|(t, v)| step(*t, p[0]) - v));
+    };
+    solve(
+        &Problem {
+            residuals: &f,
+            start: vec![0.6],
+            lower: vec![0.02],
+            upper: vec![4.0],
+            step: vec![1e-5],
+        },
+        50,
+    )
+    .params[0]
 }
 
 /// One view for [`measure`]: real and rendered DN and the render's terrain mask, `w x h`.
@@ -99,30 +160,29 @@ pub struct EdgeView<'a> {
 /// Measures the excess edge blur of the real images over the renders along the skyline of the
 /// render masks, over several views; `None` with fewer than 30 usable profiles.
 pub fn measure(views: &[EdgeView<'_>]) -> Option<EdgeBlur> {
-    let mut diff = Vec::new();
-    let mut rv = Vec::new();
-    let mut qv = Vec::new();
+    let mut real = Vec::new();
+    let mut render = Vec::new();
+    let mut profiles = 0;
     for v in views {
-        let (real, render, w) = (v.real, v.render, v.w);
-        for (x, y0) in skyline(v.mask, w, v.h) {
+        for (x, y0) in skyline(v.mask, v.w, v.h) {
             if let (Some(q), Some(r)) = (
-                edge_variance(real, w, x, y0),
-                edge_variance(render, w, x, y0),
+                edge_samples(v.real, v.w, x, y0),
+                edge_samples(v.render, v.w, x, y0),
             ) {
-                diff.push(q - r);
-                qv.push(q);
-                rv.push(r);
+                real.extend(q);
+                render.extend(r);
+                profiles += 1;
             }
         }
     }
-    if diff.len() < MIN_PROFILES {
+    if profiles < MIN_PROFILES {
         return None;
     }
-    let profiles = diff.len();
+    let (sq, sr) = (pooled_sigma(&real), pooled_sigma(&render));
     Some(EdgeBlur {
-        sigma_px: median(diff).max(0.0).sqrt(),
-        render_var: median(rv),
-        real_var: median(qv),
+        sigma_px: (sq * sq - sr * sr).max(0.0).sqrt(),
+        render_var: sr * sr,
+        real_var: sq * sq,
         profiles,
     })
 }

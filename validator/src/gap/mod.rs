@@ -163,9 +163,13 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn predict_all(&self, model: &SensorModel) -> Vec<Prediction> {
+        self.predict_sampled(model, self.supersample)
+    }
+
+    fn predict_sampled(&self, model: &SensorModel, supersample: u32) -> Vec<Prediction> {
         self.views
             .iter()
-            .map(|v| predict(&self.scene, &self.light, v, model, self.supersample))
+            .map(|v| predict(&self.scene, &self.light, v, model, supersample))
             .collect()
     }
 }
@@ -567,7 +571,7 @@ fn blur_stage(ctx: &Ctx<'_>, model: &mut SensorModel, min_share: f64, out: &mut 
     if has(model, "blur") {
         return;
     }
-    let preds = ctx.predict_all(model);
+    let preds = ctx.predict_sampled(model, 1);
     let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
     let views: Vec<blur::EdgeView<'_>> = ctx
         .views
@@ -586,7 +590,7 @@ fn blur_stage(ctx: &Ctx<'_>, model: &mut SensorModel, min_share: f64, out: &mut 
         return;
     };
     let share = if m.real_var > 0.0 {
-        m.sigma_px.powi(2) / m.real_var
+        (m.sigma_px.powi(2) / m.real_var).min(1.0)
     } else {
         0.0
     };
