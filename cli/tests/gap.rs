@@ -205,3 +205,31 @@ fn the_demo_finds_its_hidden_vignetting_and_shrinks_the_gap() {
     assert!(gap["gap_after"].as_f64().unwrap() < gap["gap_before"].as_f64().unwrap());
     assert!(gap["applied"].as_str().unwrap().ends_with("+gap.1"));
 }
+
+#[test]
+fn hidden_low_light_shadows_are_named_with_their_direction() {
+    // At the default lab light (elevation ~60°) a mini terrain casts almost no shadow; at 25°
+    // boulders and hills do.
+    let dir = tempfile::tempdir().unwrap();
+    let db = campaign(
+        dir.path(),
+        &[
+            "--hidden-effect",
+            "shadows",
+            "--effect-param",
+            "shadows.elevation_deg=25",
+        ],
+    );
+    let v = regolith(&["gap", &db, "--entry", "laser/0.01"]);
+    assert_eq!(named(&v), ["shadows"]);
+    let truth: Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("camp/truth/hidden.json")).unwrap())
+            .unwrap();
+    let truth = &truth["effects"][0];
+    let el = param(&v, "shadows", "elevation_deg");
+    let az = param(&v, "shadows", "azimuth_deg");
+    let true_az = truth["azimuth_deg"].as_f64().unwrap();
+    assert!((el - 25.0).abs() <= 3.0, "elevation {el}");
+    let daz = (az - true_az + 540.0).rem_euclid(360.0) - 180.0;
+    assert!(daz.abs() <= 3.0, "azimuth {az} vs {true_az}");
+}

@@ -20,6 +20,7 @@
 //! 1/12 px² as blur the point-sampled simulation lacks, which is what it is.
 
 use super::lsq::{solve, Problem};
+use super::views::ImagePair;
 
 /// Half-height of an edge profile, px.
 pub const HALF: usize = 6;
@@ -142,24 +143,9 @@ fn pooled_sigma(samples: &[(f64, f64)]) -> f64 {
     .params[0]
 }
 
-/// One view for [`measure`]: real and rendered DN and the render's terrain mask, `w x h`.
-#[derive(Debug, Clone, Copy)]
-pub struct EdgeView<'a> {
-    /// Real DN (the frame mean).
-    pub real: &'a [f32],
-    /// Rendered DN.
-    pub render: &'a [f32],
-    /// The render sees terrain.
-    pub mask: &'a [bool],
-    /// Width.
-    pub w: usize,
-    /// Height.
-    pub h: usize,
-}
-
 /// Measures the excess edge blur of the real images over the renders along the skyline of the
 /// render masks, over several views; `None` with fewer than 30 usable profiles.
-pub fn measure(views: &[EdgeView<'_>]) -> Option<EdgeBlur> {
+pub fn measure(views: &[ImagePair<'_>]) -> Option<EdgeBlur> {
     let mut real = Vec::new();
     let mut render = Vec::new();
     let mut profiles = 0;
@@ -214,7 +200,7 @@ mod tests {
         let (render, mask) = scene(w, h);
         for sigma in [0.6, 1.0, 1.5] {
             let real = gaussian_blur(&render, w, h, sigma);
-            let m = measure(&[EdgeView {
+            let m = measure(&[ImagePair {
                 real: &real,
                 render: &render,
                 mask: &mask,
@@ -224,7 +210,7 @@ mod tests {
             .unwrap();
             assert!((m.sigma_px - sigma).abs() < 0.1, "{sigma}: {m:?}");
         }
-        let m = measure(&[EdgeView {
+        let m = measure(&[ImagePair {
             real: &render,
             render: &render,
             mask: &mask,

@@ -10,8 +10,9 @@
 //!    first ([`geometry`]: `distortion`, `pose-bias` jointly, by dense alignment), then `blur`
 //!    from the width of the skyline edges ([`blur`]: a pixel fit would mistake the render's own
 //!    noise for it), then photometry jointly with that PSF ([`photometry`]: `exposure`,
-//!    `vignetting`, `gamma`, each subset with and without `shadows` of the campaign light, whose
-//!    direction is then refined), then `noise` ([`noise`], from the repeat frames). Within a stage every subset of candidates is fitted and
+//!    `vignetting`, `gamma`), then cast `shadows` of the campaign light where they would fall
+//!    ([`shadows`]: too small and sharp for the low-passed photometric fit; the direction is then
+//!    refined), then `noise` ([`noise`], from the repeat frames). Within a stage every subset of candidates is fitted and
 //!    scored on held-out captures, and the subset is chosen jointly ([`select`]); an effect is
 //!    named only if it explains at least a set share of the stage's held-out error.
 //! 3. **Add**: the named effects join the entry's sensor model (see [`apply`] for writing it into
@@ -30,6 +31,7 @@ pub mod measure;
 pub mod noise;
 pub mod photometry;
 pub mod select;
+pub mod shadows;
 pub mod views;
 
 use std::collections::BTreeMap;
@@ -43,7 +45,7 @@ use crate::validate::{campaign_light, entry_geometry};
 
 pub use measure::Metrics;
 use select::{choose, subsets, Candidate};
-use views::{load_views, predict, GapView, Prediction};
+use views::{load_views, predict, GapView, ImagePair, Prediction};
 
 /// Options of a gap run.
 #[derive(Debug, Clone, PartialEq)]
@@ -406,25 +408,7 @@ fn photometry_stage(
         }
         s
     };
-    let base_light = ctx.light;
-    let shadows_at = |az: f64, el: f64| {
-        let mut m = model.clone();
-        upsert(
-            &mut m,
-            Effect::Shadows {
-                azimuth_deg: az,
-                elevation_deg: el,
-            },
-        );
-        m
-    };
     let plain = samples_of(model);
-    let shadowed = (!has(model, "shadows")).then(|| {
-        samples_of(&shadows_at(
-            base_light.azimuth_deg,
-            base_light.elevation_deg,
-        ))
-    });
     let absent: Vec<&'static str> = ["exposure", "vignetting", "gamma"]
         .into_iter()
         .filter(|n| !has(model, n))
@@ -439,34 +423,23 @@ fn photometry_stage(
             photometry::mse(s, &f.params, &|fold| hold.is_none_or(|h| fold == h))
         })
     };
-    let mut cands = Vec::new();
-    for with_shadows in [false, true] {
-        let s = match (with_shadows, &shadowed) {
-            (false, _) => &plain,
-            (true, Some(s)) => s,
-            (true, None) => continue,
-        };
-        for set in subsets(&absent) {
+    let cands: Vec<Candidate> = subsets(&absent)
+        .into_iter()
+        .map(|set| {
             let mut all = set.clone();
             all.extend(&present);
-            let cv = cv_of(s, &all);
-            let mut effects = set.clone();
-            if with_shadows {
-                effects.push("shadows");
+            Candidate {
+                cv_error: cv_of(&plain, &all),
+                k: photometry::free(&set).len(),
+                effects: set,
             }
-            cands.push(Candidate {
-                k: photometry::free(&set).len() + if with_shadows { 2 } else { 0 },
-                effects,
-                cv_error: cv,
-            });
-        }
-    }
+        })
+        .collect();
     let Some(choice) = choose(&cands, min_share, MIN_PHOTOMETRIC_DN2) else {
         return scored(&cands);
     };
     let chosen = cands[choice.index].effects.clone();
-    let uses_shadows = chosen.contains(&"shadows");
-    let mut fit_set: Vec<&str> = chosen.iter().copied().filter(|e| *e != "shadows").collect();
+    let mut fit_set: Vec<&str> = chosen.clone();
     fit_set.extend(&present);
     // The exposure gain is a nuisance of every final fit: the entry's albedo and shading are
     // never exactly at the camera's level, and an effect fitted without a free gain absorbs that
@@ -477,36 +450,7 @@ fn photometry_stage(
     if !fit_set.contains(&"exposure") && !fit_set.contains(&"gamma") {
         fit_set.push("gain");
     }
-    let mut direction = (base_light.azimuth_deg, base_light.elevation_deg);
-    let mut s = if uses_shadows {
-        shadowed.clone().unwrap_or_default()
-    } else {
-        plain
-    };
-    if uses_shadows {
-        // Coordinate search of the light direction around the campaign light.
-        let mut best = photometry::fit(&s, &fit_set, &|_| true).mse;
-        for step in [4.0, 2.0, 1.0, 0.5] {
-            for axis in 0..2 {
-                for sign in [-1.0, 1.0] {
-                    let mut d = direction;
-                    if axis == 0 {
-                        d.0 += sign * step;
-                    } else {
-                        d.1 = (d.1 + sign * step).clamp(5.0, 89.0);
-                    }
-                    let trial = samples_of(&shadows_at(d.0, d.1));
-                    let e = photometry::fit(&trial, &fit_set, &|_| true).mse;
-                    if e < best {
-                        best = e;
-                        direction = d;
-                        s = trial;
-                    }
-                }
-            }
-        }
-    }
-    let f = photometry::fit(&s, &fit_set, &|_| true);
+    let f = photometry::fit(&plain, &fit_set, &|_| true);
     let p = f.params;
     let built = |name: &str| -> Option<(Effect, BTreeMap<String, f64>)> {
         let (e, idx): (Effect, &[usize]) = match name {
@@ -519,13 +463,6 @@ fn photometry_stage(
             ),
             "vignetting" => (Effect::Vignetting { strength: p[2] }, &[2]),
             "gamma" => (Effect::Gamma { gamma: p[3] }, &[3]),
-            "shadows" => (
-                Effect::Shadows {
-                    azimuth_deg: direction.0.rem_euclid(360.0),
-                    elevation_deg: direction.1,
-                },
-                &[],
-            ),
             _ => return None,
         };
         let names = photometry::PARAMS;
@@ -573,12 +510,12 @@ fn blur_stage(ctx: &Ctx<'_>, model: &mut SensorModel, min_share: f64, out: &mut 
     }
     let preds = ctx.predict_sampled(model, 1);
     let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
-    let views: Vec<blur::EdgeView<'_>> = ctx
+    let views: Vec<ImagePair<'_>> = ctx
         .views
         .iter()
         .zip(&preds)
         .zip(&means)
-        .map(|((v, p), m)| blur::EdgeView {
+        .map(|((v, p), m)| ImagePair {
             real: m,
             render: &p.dn,
             mask: &p.mask,
@@ -609,6 +546,100 @@ fn blur_stage(ctx: &Ctx<'_>, model: &mut SensorModel, min_share: f64, out: &mut 
         format!(
             "skyline edges ({} profiles): variance {:.3} px² real vs {:.3} px² rendered",
             m.profiles, m.real_var, m.render_var
+        ),
+    ));
+}
+
+/// Share of the shadow pixels' error the shadowed prediction must remove, overall and (at half
+/// of it) in every capture, for `shadows` to be named.
+const MIN_SHADOW_EXPLAINED: f64 = 0.5;
+/// Fewest shadow pixels (all views) for a shadow test.
+const MIN_SHADOW_PIXELS: usize = 200;
+
+/// Cast shadows of the campaign light ([`shadows`]). Updates `model`.
+fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
+    if has(model, "shadows") {
+        return;
+    }
+    let with = |az: f64, el: f64| {
+        let mut m = model.clone();
+        upsert(
+            &mut m,
+            Effect::Shadows {
+                azimuth_deg: az,
+                elevation_deg: el,
+            },
+        );
+        m
+    };
+    let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
+    let lit = ctx.predict_sampled(model, 1);
+    let light = (ctx.light.azimuth_deg, ctx.light.elevation_deg);
+    let shadowed = ctx.predict_sampled(&with(light.0, light.1), 1);
+    let views: Vec<shadows::ShadowView<'_>> = ctx
+        .views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| shadows::ShadowView {
+            real: &means[i],
+            lit: &lit[i].dn,
+            shadowed: &shadowed[i].dn,
+            mask: &lit[i].mask,
+            w: v.width,
+            h: v.height,
+            fold: ctx.folds[i],
+        })
+        .collect();
+    let ev = shadows::evidence(&views);
+    if ev.pixels < MIN_SHADOW_PIXELS
+        || ev.explained < MIN_SHADOW_EXPLAINED
+        || ev.per_fold.iter().any(|f| *f < 0.5 * MIN_SHADOW_EXPLAINED)
+    {
+        return;
+    }
+    let score = |preds: &[Prediction]| {
+        let v: Vec<shadows::ShadowView<'_>> = views
+            .iter()
+            .zip(preds)
+            .map(|(v, p)| shadows::ShadowView {
+                shadowed: &p.dn,
+                ..*v
+            })
+            .collect();
+        shadows::overlap(&v)
+    };
+    let mut direction = light;
+    let mut best = score(&shadowed);
+    for step in [4.0, 2.0, 1.0, 0.5] {
+        for axis in 0..2 {
+            for sign in [-1.0, 1.0] {
+                let mut d = direction;
+                if axis == 0 {
+                    d.0 += sign * step;
+                } else {
+                    d.1 = (d.1 + sign * step).clamp(5.0, 89.0);
+                }
+                let e = score(&ctx.predict_sampled(&with(d.0, d.1), 1));
+                if e > best {
+                    best = e;
+                    direction = d;
+                }
+            }
+        }
+    }
+    let e = Effect::Shadows {
+        azimuth_deg: direction.0.rem_euclid(360.0),
+        elevation_deg: direction.1,
+    };
+    upsert(model, e);
+    out.push(named(
+        &e,
+        BTreeMap::new(),
+        ev.explained,
+        "shadows",
+        format!(
+            "{} shadow pixels of the campaign light: MSE {:.0} DN² lit vs {:.0} DN² shadowed",
+            ev.pixels, ev.mse_lit, ev.mse_shadowed
         ),
     ));
 }
@@ -685,6 +716,7 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
         "photometry".to_string(),
         photometry_stage(&ctx, &mut model, opts.min_share, &mut found),
     );
+    shadows_stage(&ctx, &mut model, &mut found);
     noise_stage(&ctx, &preds_before, &mut model, &mut found);
     let preds_after = ctx.predict_all(&model);
     let metrics_after = measure::measure(&ctx.views, &preds_after, &model);
