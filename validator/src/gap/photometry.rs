@@ -18,7 +18,7 @@
 //! pixels does not count), where the real mean is neither black nor saturated. The real side is
 //! the mean of the frames, so noise enters only as variance.
 
-use crate::sensor::gaussian_blur;
+use crate::sensor::{gaussian_blur, Effect};
 
 use super::lsq::{solve, Problem};
 use super::views::{GapView, Prediction};
@@ -114,8 +114,25 @@ pub fn erode(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
 pub const PARAMS: [&str; 4] = ["gain", "offset", "strength", "gamma"];
 /// Neutral values.
 pub const NEUTRAL: [f64; 4] = [1.0, 0.0, 0.0, 1.0];
-const LOWER: [f64; 4] = [0.3, -0.2, 0.0, 0.5];
-const UPPER: [f64; 4] = [2.0, 0.2, 0.9, 3.5];
+
+/// Fit bounds of parameter `i`: the catalogue's plausible range ([`Effect::default_range`]),
+/// widened by half its span on each side and always containing the neutral value. An effect
+/// pushed far outside its physical range is another effect in disguise (an exposure offset of
+/// 0.2 mimics a response curve of 1.5 on a terrain's narrow intensity range).
+fn bounds(i: usize) -> (f64, f64) {
+    let (effect, name) = [
+        ("exposure", "gain"),
+        ("exposure", "offset"),
+        ("vignetting", "strength"),
+        ("gamma", "gamma"),
+    ][i];
+    Effect::default_range(effect)
+        .and_then(|r| r.iter().find(|p| p.name == name))
+        .map_or((f64::NEG_INFINITY, f64::INFINITY), |p| {
+            let half = 0.5 * (p.max - p.min);
+            ((p.min - half).min(p.neutral), (p.max + half).max(p.neutral))
+        })
+}
 const STEP: [f64; 4] = [1e-5, 1e-5, 1e-5, 1e-5];
 
 /// The free parameters of a subset of {`exposure`, `vignetting`, `gamma`}; `gain` alone frees
@@ -185,8 +202,8 @@ pub fn fit(
         &Problem {
             residuals: &f,
             start: idx.iter().map(|&i| NEUTRAL[i]).collect(),
-            lower: idx.iter().map(|&i| LOWER[i]).collect(),
-            upper: idx.iter().map(|&i| UPPER[i]).collect(),
+            lower: idx.iter().map(|&i| bounds(i).0).collect(),
+            upper: idx.iter().map(|&i| bounds(i).1).collect(),
             step: idx.iter().map(|&i| STEP[i]).collect(),
         },
         60,
