@@ -121,6 +121,9 @@ pub enum Command {
         /// Minimum share of a stage's held-out error an effect must explain to be named.
         #[arg(long, default_value_t = 0.10)]
         min_share: f64,
+        /// Write an offline HTML report (index.html + PNG charts) into this folder.
+        #[arg(long)]
+        report: Option<PathBuf>,
     },
     /// The validator's feature detectors and repeatability metric on your own images.
     Features {

@@ -72,6 +72,7 @@ fn hidden_noise_is_named_fitted_and_applied() {
             "noise.read_sigma=2.0",
         ],
     );
+    let report = dir.path().join("report");
     let v = regolith(&[
         "gap",
         &db,
@@ -80,7 +81,20 @@ fn hidden_noise_is_named_fitted_and_applied() {
         "--captures",
         "loc01",
         "--apply",
+        "--report",
+        report.to_str().unwrap(),
     ]);
+    // The report page links charts that exist and decode.
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(html.contains("noise"));
+    for png in ["radius.png", "intensity.png", "spectrum.png"] {
+        assert!(html.contains(png), "{png} not linked");
+        let file = std::fs::File::open(report.join(png)).unwrap();
+        let info = png::Decoder::new(std::io::BufReader::new(file))
+            .read_info()
+            .unwrap();
+        assert!(info.info().width > 100);
+    }
     for key in ["gap_before", "gap_after", "metrics_before", "metrics_after"] {
         assert!(!v[key].is_null(), "{key} missing");
     }

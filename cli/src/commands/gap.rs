@@ -18,6 +18,7 @@ pub fn run(
     captures: &[String],
     apply_model: bool,
     min_share: f64,
+    report: Option<&Path>,
     json: bool,
 ) -> anyhow::Result<Outcome> {
     anyhow::ensure!(
@@ -51,8 +52,15 @@ pub fn run(
     } else {
         None
     };
+    let index = match report {
+        Some(dir) => Some(regolith_validator::report::write_gap_report(dir, &result)?),
+        None => None,
+    };
     if json {
         let mut v = serde_json::to_value(&result)?;
+        if let Some(i) = &index {
+            v["report"] = json!(i);
+        }
         v["applied"] = match &applied {
             Some((label, id)) => json!({"release": label, "id": id.to_hex()}),
             None => serde_json::Value::Null,
@@ -89,6 +97,9 @@ pub fn run(
             b.alignment_residual,
             a.alignment_residual
         );
+        if let Some(i) = &index {
+            println!("  report: {}", i.display());
+        }
         match &applied {
             Some((label, id)) => println!("  applied: release {label} ({})", id.short()),
             None if apply_model => println!("  nothing to apply"),

@@ -37,7 +37,17 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             captures,
             apply,
             min_share,
-        } => gap::run(db, release, entry, captures, *apply, *min_share, cli.json),
+            report,
+        } => gap::run(
+            db,
+            release,
+            entry,
+            captures,
+            *apply,
+            *min_share,
+            report.as_deref(),
+            cli.json,
+        ),
         Command::Release {
             db,
             release,

@@ -26,6 +26,7 @@
 //!   drawn with a font compiled into the binary, so the same input gives the same bytes on any
 //!   machine, including one without system fonts.
 
+mod gap;
 pub mod html;
 pub mod plot;
 mod validation;
@@ -34,7 +35,16 @@ use std::path::PathBuf;
 
 use regolith_reader::ReaderError;
 
+pub use gap::write_gap_report;
 pub use validation::{overlay_scale, ValidationReport};
+
+/// Maps an I/O error on `path` to [`ReportError::Io`].
+pub(crate) fn io_err(path: &std::path::Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
+    move |source| ReportError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
 
 /// A report could not be written.
 #[derive(Debug, thiserror::Error)]

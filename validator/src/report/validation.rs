@@ -9,6 +9,7 @@ use std::sync::Mutex;
 use regolith_reader::ReleaseView;
 
 use super::html::{Cell, Figure, Mark, Page};
+use super::io_err;
 use super::plot::{
     self, bar_chart, keypoint_overlay, line_plot_axes, magnitude_png, palette, Axes, BarGroup,
     Link, Marker, PlotError, Raster, Rgb, Series, SeriesStyle, Shape,
@@ -61,13 +62,6 @@ pub struct ValidationReport {
     release_id: String,
     entries: Vec<EntrySection>,
     slugs: BTreeSet<String>,
-}
-
-fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> ReportError + '_ {
-    move |source| ReportError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
 }
 
 fn fmt_interval(i: &Interval) -> String {

@@ -1,0 +1,176 @@
+//! The gap workflow's report: what was named and why, and the gap before and after, as an
+//! offline page (`index.html` + PNG charts) with the same chart helpers as the validation report.
+//!
+//! Charts: the residual ratio real/render by normalised image radius (vignetting shows as a
+//! falling curve that the model flattens), real against rendered intensity (exposure and the
+//! response curve bend it away from the diagonal), the spectrum log-ratio per band (blur and
+//! noise tilt it), and the held-out error of every candidate set per stage (why a set won).
+
+use std::path::{Path, PathBuf};
+
+use super::html::{Cell, Figure, Page};
+use super::plot::{bar_chart, line_plot, palette, Axes, BarGroup, Series};
+use super::{io_err, ReportError};
+use crate::gap::{GapResult, Metrics};
+
+fn before_after(
+    before: &Metrics,
+    after: &Metrics,
+    pick: impl Fn(&Metrics) -> Vec<(f64, f64)>,
+) -> Vec<Series> {
+    vec![
+        Series::new("before", pick(before), palette(0)),
+        Series::new("after", pick(after), palette(1)),
+    ]
+}
+
+/// Writes the report of `r` into `dir` (created if needed); returns the path of `index.html`.
+pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportError> {
+    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    let (b, a) = (&r.metrics_before, &r.metrics_after);
+    let bins = |v: &[f64]| -> Vec<(f64, f64)> {
+        let n = v.len().max(1) as f64;
+        v.iter()
+            .enumerate()
+            .filter(|(_, y)| y.is_finite())
+            .map(|(i, y)| ((i as f64 + 0.5) / n, *y))
+            .collect()
+    };
+    line_plot(
+        &dir.join("radius.png"),
+        "Real / render by image radius",
+        "radius / corner distance",
+        "mean ratio",
+        &before_after(b, a, |m| bins(&m.residual_by_radius)),
+    )?;
+    let mut intensity = before_after(b, a, |m| m.real_by_intensity.clone());
+    intensity.push(Series::new(
+        "identity",
+        vec![(0.0, 0.0), (255.0, 255.0)],
+        palette(7),
+    ));
+    line_plot(
+        &dir.join("intensity.png"),
+        "Real against rendered intensity",
+        "rendered DN",
+        "real DN",
+        &intensity,
+    )?;
+    line_plot(
+        &dir.join("spectrum.png"),
+        "Spectrum log10 ratio render/real",
+        "band (fraction of 0.5 cycles/px)",
+        "log10 power ratio",
+        &before_after(b, a, |m| bins(&m.spectrum_log_ratio)),
+    )?;
+    let mut page = Page::new(&format!("regolith gap: {}", r.entry));
+    page.heading(1, &format!("Gap of {}", r.entry), None);
+    page.paragraph(&format!("Release {}", r.release_id));
+    page.heading(2, "Named effects", None);
+    if r.named.is_empty() {
+        page.paragraph("No effect explains a significant share of the gap.");
+    } else {
+        let rows: Vec<Vec<Cell>> = r
+            .named
+            .iter()
+            .map(|n| {
+                let params: Vec<String> = n
+                    .params
+                    .iter()
+                    .map(|(k, v)| match n.std_err.get(k) {
+                        Some(e) if *e > 0.0 => format!("{k} = {v:.4} ± {e:.4}"),
+                        _ => format!("{k} = {v:.4}"),
+                    })
+                    .collect();
+                vec![
+                    Cell::new(n.effect.clone()),
+                    Cell::new(params.join(", ")),
+                    Cell::new(format!("{:.0} %", 100.0 * n.explained_fraction)),
+                    Cell::new(n.stage.clone()),
+                    Cell::new(n.evidence.clone()),
+                ]
+            })
+            .collect();
+        page.table(
+            &["effect", "parameters", "explains", "stage", "evidence"],
+            &rows,
+        );
+    }
+    page.heading(2, "Gap before and after", None);
+    let row = |name: &str, f: &dyn Fn(&Metrics) -> f64| {
+        vec![
+            Cell::new(name),
+            Cell::new(format!("{:.3}", f(b))),
+            Cell::new(format!("{:.3}", f(a))),
+        ]
+    };
+    page.table(
+        &["metric", "before", "after"],
+        &[
+            row("photometric RMS, DN (headline)", &|m| m.photometric_rms_dn),
+            row("geometric alignment residual", &|m| m.alignment_residual),
+            row("noise variance of the real frames, DN²", &|m| {
+                m.noise_variance_dn2
+            }),
+        ],
+    );
+    let view_rows: Vec<Vec<Cell>> = b
+        .views
+        .iter()
+        .zip(&a.views)
+        .map(|(vb, va)| {
+            vec![
+                Cell::new(format!("{} {}", vb.capture, vb.camera)),
+                Cell::new(format!("{:.2}", vb.photometric_rms_dn)),
+                Cell::new(format!("{:.2}", va.photometric_rms_dn)),
+            ]
+        })
+        .collect();
+    page.table(&["view", "RMS before, DN", "RMS after, DN"], &view_rows);
+    let mut figs = vec![
+        Figure::new("radius.png", "Residual ratio by image radius", 480),
+        Figure::new("intensity.png", "Real vs rendered intensity", 480),
+        Figure::new("spectrum.png", "Spectrum log-ratio per band", 480),
+    ];
+    for (stage, cands) in &r.candidates {
+        if cands.is_empty() {
+            continue;
+        }
+        let file = format!("candidates_{stage}.png");
+        let cats: Vec<String> = cands
+            .iter()
+            .map(|c| {
+                if c.effects.is_empty() {
+                    "(none)".to_string()
+                } else {
+                    c.effects.join("+")
+                }
+            })
+            .collect();
+        bar_chart(
+            &dir.join(&file),
+            &Axes::new(
+                &format!("Held-out error per candidate set: {stage}"),
+                "candidate set",
+                "held-out error",
+            ),
+            &cats,
+            &[BarGroup::new(
+                "",
+                cands.iter().map(|c| c.cv_error).collect(),
+                palette(2),
+            )],
+            &[],
+        )?;
+        figs.push(Figure::new(
+            file,
+            format!("Candidates of the {stage} stage"),
+            640,
+        ));
+    }
+    page.heading(2, "Where the disagreement is", None);
+    page.figures(&figs);
+    let index = dir.join("index.html");
+    page.write(&index).map_err(io_err(&index))?;
+    Ok(index)
+}
