@@ -179,7 +179,11 @@ pub fn inventory(c: &Campaign, limits: &Limits) -> Result<Inventory> {
             "calibration",
             "auto".into(),
             Box::new(move || {
-                let m = calib_opencv::read_any_calibration(&root.join(&cam.calibration))?;
+                let m = calib_opencv::read_calibration_entry(
+                    &root.join(&cam.calibration),
+                    cam.entry.as_deref(),
+                    &regolith_format::limits::Limits::default(),
+                )?;
                 serde_json::to_value(&m).map_err(|e| IngestError::invalid(e.to_string()))
             }),
         ));

@@ -385,6 +385,186 @@ fn ply_binary_big_endian_equals_ascii() {
     assert_eq!(c.points[1], [1e6, 0.1, -7.0]);
 }
 
+#[test]
+fn ply_meshlab_per_corner_texcoords_ascii_and_binary() {
+    let a = ply::read_mesh_path(&data("meshlab_textured_ascii.ply"), &lim()).unwrap();
+    assert_eq!(a.texture.as_deref(), Some("texture.png"));
+    // MeshLab's per-wedge atlas puts a seam through vertices 1 and 2: one output vertex per
+    // (vertex, uv) pair, so 6 vertices for 2 triangles.
+    assert_eq!(a.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+    let (p0, p1, p2, p3) = (
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.5],
+    );
+    assert_eq!(a.positions, vec![p0, p1, p2, p1, p3, p2]);
+    let (r, g, b, w) = ([255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]);
+    assert_eq!(a.colors, Some(vec![r, g, b, g, w, b]));
+    // The face lines as written (u v per corner, v up), flipped to v down.
+    let written: [[f32; 2]; 6] = [
+        [0.007812, 0.992188],
+        [0.007812, 0.018861],
+        [0.981139, 0.992188],
+        [0.018861, 0.007812],
+        [0.992188, 0.007812],
+        [0.992188, 0.981139],
+    ];
+    let flip = |uv: &[f32; 2]| [uv[0], (1.0 - f64::from(uv[1])) as f32];
+    assert_eq!(
+        a.uvs.clone().unwrap(),
+        written.iter().map(flip).collect::<Vec<_>>()
+    );
+
+    let bin = ply::read_mesh_path(&data("meshlab_textured_binary.ply"), &lim()).unwrap();
+    assert_eq!(
+        (&bin.positions, &bin.triangles, &bin.colors, &bin.texture),
+        (&a.positions, &a.triangles, &a.colors, &a.texture)
+    );
+    // Binary keeps MeshLab's float32 values: 0.5/64 = 0.0078125 and 63.5/64 = 0.9921875.
+    let bu = bin.uvs.unwrap();
+    assert_eq!(bu[0], [0.0078125, 1.0 - 0.9921875]);
+    let au = a.uvs.unwrap();
+    assert!(bu
+        .iter()
+        .zip(&au)
+        .all(|(x, y)| (x[0] - y[0]).abs() < 1e-6 && (x[1] - y[1]).abs() < 1e-6));
+}
+
+#[test]
+fn ply_texcoords_shared_corners_quads_texnumber_and_bad_counts() {
+    let header = |texnumber: bool| {
+        format!(
+            "ply\nformat ascii 1.0\ncomment TextureFile a.png\ncomment TextureFile b.png\nelement vertex 5\n\
+             property float x\nproperty float y\nproperty float z\nelement face 2\n\
+             property list uchar int vertex_indices\nproperty list uchar float texcoord\n{}end_header\n\
+             0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n",
+            if texnumber { "property int texnumber\n" } else { "" }
+        )
+    };
+    // A quad and a triangle sharing the edge 1-2 with the same UVs there.
+    let quad = "4 0 1 2 3 8 0 0 0.5 0 0.5 0.5 0 0.5";
+    let tri = "3 1 4 2 6 0.5 0 1 0 0.5 0.5";
+    let m = ply::read_ply_mesh(
+        format!("{}{quad} 1\n{tri} 1\n", header(true)).as_bytes(),
+        &lim(),
+    )
+    .unwrap();
+    assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]]);
+    assert_eq!(m.positions.len(), 5);
+    assert_eq!(m.positions[4], [2.0, 0.0, 0.0]);
+    assert_eq!(m.uvs.as_ref().unwrap()[4], [1.0, 1.0]);
+    assert_eq!(m.texture.as_deref(), Some("b.png"));
+    let plain = ply::read_ply_mesh(
+        format!("{}{quad}\n{tri}\n", header(false)).as_bytes(),
+        &lim(),
+    );
+    assert_eq!(plain.unwrap().texture.as_deref(), Some("a.png"));
+    assert_err(
+        ply::read_ply_mesh(
+            format!("{}{quad} 0\n{tri} 1\n", header(true)).as_bytes(),
+            &lim(),
+        ),
+        &[
+            "unsupported",
+            "face 1 uses texture 1",
+            "one texture per mesh",
+        ],
+    );
+    assert_err(
+        ply::read_ply_mesh(
+            format!("{}{quad} 2\n{tri} 2\n", header(true)).as_bytes(),
+            &lim(),
+        ),
+        &["texnumber 2", "2 `TextureFile`s"],
+    );
+    let nan = textured_ply(
+        &[[0.0; 3]; 3],
+        &[([0, 1, 2], [[0.5, f32::NAN], [0.0; 2], [1.0; 2]])],
+        true,
+    );
+    assert_err(
+        ply::read_ply_mesh(&nan, &lim()),
+        &["face 0 has 6 texcoord values, expected 6 finite ones"],
+    );
+    assert_err(
+        ply::read_mesh_path(&data("bad/texcoord_count.ply"), &lim()),
+        &[
+            "texcoord_count.ply",
+            "face 1 has 4 texcoord values, expected 6",
+        ],
+    );
+}
+
+/// A textured triangle mesh as MeshLab writes it (`texcoord` per face), ascii or binary LE.
+fn textured_ply(pos: &[[f64; 3]], faces: &[([u32; 3], [[f32; 2]; 3])], binary: bool) -> Vec<u8> {
+    let format = if binary {
+        "binary_little_endian"
+    } else {
+        "ascii"
+    };
+    let mut out = format!(
+        "ply\nformat {format} 1.0\ncomment TextureFile atlas.png\nelement vertex {}\n\
+         property double x\nproperty double y\nproperty double z\nelement face {}\n\
+         property list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n",
+        pos.len(),
+        faces.len()
+    )
+    .into_bytes();
+    for p in pos {
+        if binary {
+            p.iter().for_each(|v| out.extend(v.to_le_bytes()));
+        } else {
+            out.extend(format!("{:?} {:?} {:?}\n", p[0], p[1], p[2]).bytes());
+        }
+    }
+    for (idx, uv) in faces {
+        if binary {
+            out.push(3);
+            idx.iter()
+                .for_each(|i| out.extend((*i as i32).to_le_bytes()));
+            out.push(6);
+            uv.iter()
+                .flatten()
+                .for_each(|v| out.extend(v.to_le_bytes()));
+        } else {
+            let uvs: Vec<String> = uv.iter().flatten().map(|v| format!("{v:?}")).collect();
+            out.extend(format!("3 {} {} {} 6 {}\n", idx[0], idx[1], idx[2], uvs.join(" ")).bytes());
+        }
+    }
+    out
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Every corner of every triangle reads back with the position and UV written for it, in
+    /// ascii and binary alike.
+    #[test]
+    fn ply_per_corner_uv_round_trip(
+        pos in prop::collection::vec(prop::array::uniform3(-1e3f64..1e3), 3..10),
+        faces in prop::collection::vec(
+            (prop::array::uniform3(0u32..10), prop::array::uniform3(prop::array::uniform2(
+                prop_oneof![Just(0.0f32), Just(0.25), Just(1.0), 0.0f32..1.0]))),
+            1..12),
+    ) {
+        let n = pos.len() as u32;
+        let faces: Vec<_> = faces.into_iter().map(|(i, uv)| (i.map(|k| k % n), uv)).collect();
+        let ascii = ply::read_ply_mesh(&textured_ply(&pos, &faces, false), &lim()).unwrap();
+        let binary = ply::read_ply_mesh(&textured_ply(&pos, &faces, true), &lim()).unwrap();
+        prop_assert_eq!(&ascii, &binary);
+        prop_assert_eq!(ascii.triangles.len(), faces.len());
+        let uvs = ascii.uvs.unwrap();
+        prop_assert_eq!(uvs.len(), ascii.positions.len());
+        for (t, (idx, uv)) in ascii.triangles.iter().zip(&faces) {
+            for k in 0..3 {
+                let v = t[k] as usize;
+                prop_assert_eq!(ascii.positions[v], pos[idx[k] as usize]);
+                prop_assert_eq!(uvs[v], [uv[k][0], (1.0 - f64::from(uv[k][1])) as f32]);
+            }
+        }
+    }
+}
+
 // ---- Truncation sweep --------------------------------------------------------------------
 
 #[test]
@@ -401,6 +581,8 @@ fn every_prefix_is_ok_or_err_never_a_panic() {
         "project.rsp",
         "cmpmvs_quad_crlf.ply",
         "textured_st_uint_count.ply",
+        "meshlab_textured_ascii.ply",
+        "meshlab_textured_binary.ply",
     ];
     let mut cases = 0;
     for name in text_samples {

@@ -68,6 +68,204 @@ fn nexus_csv_real_export() {
     );
 }
 
+fn mm(x: f64) -> f64 {
+    x * 1e-3
+}
+
+/// The hand-written export of tests/data/vicon (PROVENANCE.md there): Segments, Trajectories,
+/// Model Outputs in that order, frames 101..103, gaps as empty cells.
+#[test]
+fn nexus_segments_and_model_outputs_fixture() {
+    let l = Limits::default();
+    let path = data("vicon/nexus_sections.csv");
+    let x = vicon_csv::read_export_path(&path, &l).unwrap();
+
+    let s = x.segments.clone().unwrap();
+    assert_eq!(
+        (s.rate_hz, s.first_frame, s.segments.len()),
+        (100.0, 101, 2)
+    );
+    let (head, pelvis) = (&s.segments[0], &s.segments[1]);
+    assert_eq!(
+        (head.name.as_str(), head.subject.as_deref()),
+        ("Head", Some("Subject01"))
+    );
+    assert_eq!(pelvis.name, "Pelvis");
+    let h0 = head.frames[0].unwrap();
+    assert_eq!(h0.rotation_deg, [1.5, -2.25, 90.0]);
+    assert_eq!(h0.translation_m, [mm(100.5), mm(200.0), mm(1500.0)]);
+    assert_eq!(pelvis.frames.len(), 3);
+    assert_eq!(pelvis.frames[1], None);
+    let p2 = pelvis.frames[2].unwrap();
+    assert_eq!(
+        (p2.rotation_deg, p2.translation_m),
+        ([0.5, 0.0, -44.0], [mm(11.0), mm(-19.0), mm(951.0)])
+    );
+    assert_eq!(
+        vicon_csv::parse_segments(&std::fs::read(&path).unwrap(), &l).unwrap(),
+        s
+    );
+
+    let m = x.model_outputs.clone().unwrap();
+    assert_eq!((m.rate_hz, m.first_frame), (100.0, 101));
+    let shape: Vec<(&str, usize)> = m
+        .outputs
+        .iter()
+        .map(|o| (o.name.as_str(), o.columns.len()))
+        .collect();
+    assert_eq!(
+        shape,
+        [
+            ("LAnkleAngles", 3),
+            ("LAnklePower", 3),
+            ("StepWidth", 1),
+            ("LGRFPeak", 4)
+        ]
+    );
+    let col = |o: usize, c: usize| &m.outputs[o].columns[c];
+    assert_eq!(
+        (col(0, 0).label.as_str(), col(0, 0).unit.as_str()),
+        ("X", "deg")
+    );
+    assert_eq!(col(0, 0).values, vec![Some(10.5), Some(11.0), Some(11.5)]);
+    assert_eq!(col(1, 2).unit, "W/kg");
+    assert_eq!(col(1, 2).values, vec![Some(0.35), None, Some(0.4)]);
+    assert_eq!((col(2, 0).unit.as_str(), col(2, 0).values[2]), ("mm", None));
+    assert_eq!(
+        (col(3, 3).label.as_str(), col(3, 3).unit.as_str()),
+        ("Count", "")
+    );
+    assert_eq!(col(3, 2).values, vec![Some(9.8), Some(9.9), Some(10.1)]);
+
+    let t = x.trajectories.unwrap();
+    assert_eq!(t, vicon_csv::read_path(&path, &l).unwrap());
+    let names: Vec<_> = t.markers.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names, ["LASI", "RASI", "*12"]);
+    assert_eq!(t.markers[2].subject, None);
+    assert_eq!(t.markers[1].frames[1], None);
+    assert_eq!(
+        t.markers[0].frames[2],
+        Some([mm(121.5), mm(-79.75), mm(951.0)])
+    );
+}
+
+#[test]
+fn nexus_sections_in_any_order_with_devices_semicolons_and_radians() {
+    let l = Limits::default();
+    let text = std::fs::read_to_string(data("vicon/nexus_sections.csv")).unwrap();
+    let reference = vicon_csv::parse_export(text.as_bytes(), &l).unwrap();
+    let blocks: Vec<&str> = text
+        .split("\r\n\r\n")
+        .map(|b| b.trim_matches(['\r', '\n']))
+        .filter(|b| !b.is_empty())
+        .collect();
+    assert_eq!(blocks.len(), 3);
+    let devices = "Devices\r\n1000\r\n,,Plate,,\r\nFrame,Sub Frame,Fx,Fy,Fz\r\n,,N,N,N\r\n101,0,1,2,3\r\n101,1,1,2,3";
+    let orders = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    for (k, order) in orders.iter().enumerate() {
+        let mut parts: Vec<&str> = order.iter().map(|&i| blocks[i]).collect();
+        parts.insert(k % 4, devices);
+        let file = format!("\u{feff}\r\n{}\r\n", parts.join("\r\n\r\n"));
+        assert_eq!(
+            vicon_csv::parse_export(file.as_bytes(), &l).unwrap(),
+            reference,
+            "{order:?}"
+        );
+        let semi = file.replace(',', ";").replace("0.5", "0,5");
+        let got = vicon_csv::parse_export(semi.as_bytes(), &l).unwrap();
+        assert_eq!(got, reference, "semicolons, {order:?}");
+    }
+    // Each section alone is enough for parse_export; the others are then None.
+    let only = vicon_csv::parse_export(blocks[2].as_bytes(), &l).unwrap();
+    assert_eq!((only.trajectories, only.segments), (None, None));
+    assert_eq!(only.model_outputs, reference.model_outputs);
+
+    let rad = "Segments\n100\n,,S:Root,,,,,\nFrame,Sub Frame,RX,RY,RZ,TX,TY,TZ\n,,rad,rad,rad,m,m,m\n1,0,3.141592653589793,0,-1.5707963267948966,1,2,3\n";
+    let s = vicon_csv::parse_segments(rad.as_bytes(), &l).unwrap();
+    let f = s.segments[0].frames[0].unwrap();
+    assert!((f.rotation_deg[0] - 180.0).abs() < 1e-12 && (f.rotation_deg[2] + 90.0).abs() < 1e-12);
+    assert_eq!(f.translation_m, [1.0, 2.0, 3.0]);
+}
+
+#[test]
+fn bad_nexus_sections_name_line_and_object() {
+    let l = Limits::default();
+    let seg = |roles: &str, units: &str, row: &str| {
+        format!("Segments\n100\n,,S:Head,,,,,\nFrame,Sub Frame,{roles}\n,,{units}\n{row}\n")
+    };
+    let (roles, units) = ("RX,RY,RZ,TX,TY,TZ", "deg,deg,deg,mm,mm,mm");
+    let e = vicon_csv::parse_segments(
+        seg("RX,RY,RZ,TX,TY,X", units, "1,0,1,2,3,4,5,6").as_bytes(),
+        &l,
+    );
+    assert_eq!(
+        e.unwrap_err().to_string(),
+        "line 4: expected RX, RY, RZ, TX, TY, TZ columns under segment `S:Head`, found \"RX\""
+    );
+    let e = vicon_csv::parse_segments(
+        seg(roles, "mm,deg,deg,mm,mm,mm", "1,0,1,2,3,4,5,6").as_bytes(),
+        &l,
+    );
+    assert!(e
+        .unwrap_err()
+        .to_string()
+        .starts_with("line 5: expected an angle unit (deg, rad) for segment `S:Head`"));
+    let e = vicon_csv::parse_segments(seg(roles, units, "1,0,1,2,x,4,5,6").as_bytes(), &l);
+    assert_eq!(
+        e.unwrap_err().to_string(),
+        "line 6: expected a value of segment `S:Head`, found \"x\""
+    );
+    let out = "Model Outputs\n100\n,,S:Out,,\nFrame,Sub Frame,X,Y\n,,deg,deg\n7,0,1,abc\n";
+    let e = vicon_csv::parse_model_outputs(out.as_bytes(), &l)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        "line 6: expected a value of model output `S:Out`, found \"abc\""
+    );
+    let unlabelled = "Model Outputs\n100\n,,S:Out,,\nFrame,Sub Frame,,\n,,deg,deg\n";
+    assert!(vicon_csv::parse_model_outputs(unlabelled.as_bytes(), &l)
+        .unwrap_err()
+        .to_string()
+        .contains("at least one labelled column under model output `S:Out`"));
+    let no_units = "Model Outputs\n100\n,,S:Out,,\nFrame,Sub Frame,X,Y\n7,0,1,2\n";
+    assert!(vicon_csv::parse_model_outputs(no_units.as_bytes(), &l)
+        .unwrap_err()
+        .to_string()
+        .starts_with("line 5: expected a units row"));
+    assert_err(
+        vicon_csv::read_export_path(&data("vicon/bad/no_trajectories.csv"), &l),
+        "no_trajectories.csv",
+        &[
+            "line 1",
+            "a `Trajectories`, `Segments` or `Model Outputs` section",
+        ],
+    );
+    let e = vicon_csv::parse_segments(b"Trajectories\n100\n", &l).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "line 1: expected a `Segments` section, found \"none\""
+    );
+    // Reading trajectories does not depend on the other sections being readable.
+    let broken = format!(
+        "{}\n{}",
+        seg(roles, units, "1,0,1,2,x,4,5,6"),
+        "Trajectories\n100\n,,s:m,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n"
+    );
+    assert_eq!(
+        vicon_csv::parse(broken.as_bytes(), &l).unwrap().markers[0].frames,
+        vec![Some([mm(1.0), mm(2.0), mm(3.0)])]
+    );
+    assert!(vicon_csv::parse_export(broken.as_bytes(), &l).is_err());
+}
+
 #[test]
 fn c3d_first_frame_matches_csv() {
     let csv = vicon_csv::read_path(&real("vicon/pyomeca_markers.csv"), &Limits::default()).unwrap();
@@ -458,6 +656,9 @@ fn truncation_sweep_never_panics() {
         (real("vicon/pyomeca_markers.csv"), |b, l| {
             vicon_csv::parse(b, l).is_ok()
         }),
+        (data("vicon/nexus_sections.csv"), |b, l| {
+            vicon_csv::parse_export(b, l).is_ok()
+        }),
         (real("vicon/pyomeca_markers_analogs.c3d"), |b, l| {
             c3d::parse(b, l).is_ok()
         }),
@@ -497,7 +698,7 @@ fn truncation_sweep_never_panics() {
             calib_kalibr::parse(b, l).is_ok()
         }),
     ];
-    assert!(samples.len() >= 13);
+    assert!(samples.len() >= 14);
     for (path, parse) in samples {
         let bytes = std::fs::read(&path).unwrap();
         assert!(parse(&bytes, &l), "{} does not parse whole", path.display());

@@ -23,7 +23,9 @@
 //! user-made, either in the same assignment form or as the text `go_calib_stereo` prints
 //! (`om = [ a  b  c ] ± [ ... ]`). Both are read: everything after `±` (or its `?` / mojibake
 //! forms) on a line is dropped. `X_right = R(om) X_left + T`, `T` in calibration-grid units,
-//! taken to be millimetres and converted to metres.
+//! taken to be millimetres and converted to metres. The `.mat` itself is read by
+//! [`super::calib_bouguet_mat`], which turns its variables into the same [`Assignment`]s (placed
+//! by byte offset instead of line) so both forms share the conversion below.
 
 use std::path::Path;
 
@@ -31,20 +33,41 @@ use regolith_format::camera_model::{CameraModel, Distortion};
 use regolith_format::frames::Pose;
 use regolith_format::limits::Limits;
 
-use super::calib_opencv::camera_from_k;
+use super::calib_opencv::camera_from_k_with;
 use super::markers;
 use super::yaml_lite::{self, Matrix};
 use crate::error::{IngestError, Result};
 
-/// One assignment `name = values;` with its 1-based line.
+/// One assignment `name = values;` (or one `.mat` variable) with where it is in its file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Assignment {
     /// Variable name.
     pub name: String,
-    /// Values in file order (`NaN` allowed).
+    /// Values in file order (`NaN` allowed); a `.mat` matrix is given row by row, as MATLAB
+    /// prints it.
     pub values: Vec<f64>,
-    /// Line of the name.
-    pub line: u64,
+    /// Where the variable is.
+    pub at: Place,
+}
+
+/// Where an [`Assignment`] is: the line of its name in a script, or the byte offset of its
+/// element in a `.mat` file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Place {
+    /// 1-based line of a `.m` script.
+    Line(u64),
+    /// Byte offset of a `.mat` data element.
+    Offset(u64),
+}
+
+impl Place {
+    /// Wraps `err` with this location.
+    pub fn locate(self, err: IngestError) -> IngestError {
+        match self {
+            Place::Line(l) => err.at_line(l),
+            Place::Offset(o) => err.at_offset(o),
+        }
+    }
 }
 
 /// Reads `Calib_Results.m`.
@@ -60,34 +83,50 @@ pub fn read_stereo_path(path: &Path, limits: &Limits) -> Result<Pose> {
 /// Parses `Calib_Results.m` (or the `_left` camera of a stereo file).
 pub fn parse(bytes: &[u8], limits: &Limits) -> Result<CameraModel> {
     let a = assignments(bytes, limits)?;
-    let suffix = if find(&a, "fc").is_none() && find(&a, "fc_left").is_some() {
+    camera(&a, stereo_suffix(&a), Form::Script)
+}
+
+/// Which file the variables come from (only the wording of a missing variable differs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Form {
+    /// A `.m` script of assignments.
+    Script,
+    /// A `.mat` binary.
+    Mat,
+}
+
+/// `"_left"` when the variables are a stereo result's (`fc_left`, no `fc`), else `""`.
+pub(crate) fn stereo_suffix(a: &[Assignment]) -> &'static str {
+    if find(a, "fc").is_none() && find(a, "fc_left").is_some() {
         "_left"
     } else {
         ""
-    };
-    camera(&a, suffix)
+    }
 }
 
 /// Parses a stereo result: `om` (Rodrigues, rad) and `T` (mm) → `right_from_left` in metres.
 pub fn parse_stereo(bytes: &[u8], limits: &Limits) -> Result<Pose> {
-    let a = assignments(bytes, limits)?;
-    let om = vec3(&a, "om")?;
-    let t = vec3(&a, "T")?;
+    stereo(&assignments(bytes, limits)?, Form::Script)
+}
+
+/// `right_from_left` from the `om` and `T` variables (shared by the `.m` and `.mat` readers).
+pub(crate) fn stereo(a: &[Assignment], form: Form) -> Result<Pose> {
+    let om = vec3(a, "om", form)?;
+    let t = vec3(a, "T", form)?;
     let r = markers::rotation_from_vector(om)
         .ok_or_else(|| IngestError::invalid("`om` is not finite"))?;
     Ok(Pose::from_matrix(r, t.map(|v| v / 1000.0)))
 }
 
-fn camera(a: &[Assignment], suffix: &str) -> Result<CameraModel> {
+/// The camera of variables `fc{suffix}`, `cc{suffix}`, ... (suffix `""`, `"_left"`, `"_right"`).
+pub(crate) fn camera(a: &[Assignment], suffix: &str, form: Form) -> Result<CameraModel> {
     let need = |n: &str, len: &[usize]| -> Result<&Assignment> {
         let name = format!("{n}{suffix}");
-        let v = find(a, &name)
-            .ok_or_else(|| IngestError::syntax(format!("an assignment `{name} = ...`"), "none"))?;
+        let v = find(a, &name).ok_or_else(|| missing(&name, form))?;
         if !len.contains(&v.values.len()) || !v.values.iter().all(|x| x.is_finite()) {
-            return Err(
-                IngestError::invalid(format!("`{name}` must hold {len:?} finite values"))
-                    .at_line(v.line),
-            );
+            return Err(v.at.locate(IngestError::invalid(format!(
+                "`{name}` must hold {len:?} finite values"
+            ))));
         }
         Ok(v)
     };
@@ -103,7 +142,8 @@ fn camera(a: &[Assignment], suffix: &str) -> Result<CameraModel> {
         None => 0.0,
     };
     let size = match (find(a, "nx"), find(a, "ny")) {
-        (Some(_), Some(_)) => (dim(need("nx", &[1])?)?, dim(need("ny", &[1])?)?),
+        // The image size has no `_left`/`_right` suffix: both cameras share it.
+        (Some(nx), Some(ny)) => (dim(nx)?, dim(ny)?),
         _ => (0, 0),
     };
     let g = |v: &Assignment, i: usize| v.values.get(i).copied().unwrap_or(0.0);
@@ -120,27 +160,38 @@ fn camera(a: &[Assignment], suffix: &str) -> Result<CameraModel> {
         p2: g(kc, 3),
         k3: g(kc, 4),
     };
-    camera_from_k(&k, dist, size, "fc, cc", fc.line)
+    let key = format!("fc{suffix}, cc{suffix}");
+    camera_from_k_with(&k, dist, size, &key, |e| fc.at.locate(e))
+}
+
+/// The error for a variable that is not there, worded for the form the others come from.
+fn missing(name: &str, form: Form) -> IngestError {
+    let expected = match form {
+        Form::Mat => format!("a numeric variable `{name}`"),
+        Form::Script => format!("an assignment `{name} = ...`"),
+    };
+    IngestError::syntax(expected, "none")
 }
 
 fn dim(v: &Assignment) -> Result<u32> {
-    match v.values.first() {
-        Some(x) if *x >= 1.0 && *x < 1e6 && x.fract() == 0.0 => Ok(*x as u32),
-        _ => Err(
-            IngestError::invalid(format!("`{}` must be a positive pixel count", v.name))
-                .at_line(v.line),
-        ),
+    match v.values.as_slice() {
+        [x] if *x >= 1.0 && *x < 1e6 && x.fract() == 0.0 => Ok(*x as u32),
+        _ => Err(v.at.locate(IngestError::invalid(format!(
+            "`{}` must be a positive pixel count",
+            v.name
+        )))),
     }
 }
 
-fn vec3(a: &[Assignment], name: &str) -> Result<[f64; 3]> {
-    let v = find(a, name)
-        .ok_or_else(|| IngestError::syntax(format!("an assignment `{name} = [...]`"), "none"))?;
+fn vec3(a: &[Assignment], name: &str, form: Form) -> Result<[f64; 3]> {
+    let v = find(a, name).ok_or_else(|| missing(name, form))?;
     <[f64; 3]>::try_from(v.values.as_slice())
         .ok()
         .filter(|x| x.iter().all(|c| c.is_finite()))
         .ok_or_else(|| {
-            IngestError::invalid(format!("`{name}` must hold 3 finite values")).at_line(v.line)
+            v.at.locate(IngestError::invalid(format!(
+                "`{name}` must hold 3 finite values"
+            )))
         })
 }
 
@@ -189,7 +240,7 @@ pub fn assignments(bytes: &[u8], limits: &Limits) -> Result<Vec<Assignment>> {
                 out.push(Assignment {
                     values: numbers(&buf, line)?,
                     name,
-                    line,
+                    at: Place::Line(line),
                 });
             }
         }

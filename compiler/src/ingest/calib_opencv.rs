@@ -1,9 +1,10 @@
-//! OpenCV FileStorage calibrations (YAML and XML) → [`CameraModel`]s and stereo extrinsics,
-//! plus the format dispatchers the campaign uses for `[[camera]].calibration` and
+//! OpenCV FileStorage calibrations (YAML, XML and JSON) → [`CameraModel`]s and stereo
+//! extrinsics, plus the format dispatchers the campaign uses for `[[camera]].calibration` and
 //! `[rig].right_from_left`.
 //!
-//! Design: the XML form is converted into the same [`yaml_lite::Node`] tree as the YAML form,
-//! so one interpreter serves both (formats.md §13). Key names are not standardised, so keys are
+//! Design: the XML form (here) and the JSON form ([`super::opencv_json`]) are converted into
+//! the same [`yaml_lite::Node`] tree as the YAML form, so one interpreter serves all three
+//! (formats.md §13). Key names are not standardised, so keys are
 //! matched case-insensitively against alias lists and grouped into cameras:
 //! * plain keys (`camera_matrix`, `distortion_coefficients`, `image_width`, ...) → camera `""`;
 //! * stereo pairs `M1 D1 M2 D2` (or `K1`/`K2`) → cameras `"1"` and `"2"`;
@@ -29,7 +30,7 @@ use regolith_format::frames::Pose;
 use regolith_format::limits::Limits;
 
 use super::yaml_lite::{self, Matrix, Node, Value};
-use super::{calib_bouguet, calib_kalibr, calib_ros, markers};
+use super::{calib_bouguet, calib_bouguet_mat, calib_kalibr, calib_ros, markers, opencv_json};
 use crate::error::{IngestError, Result};
 
 const K_ALIASES: &[&str] = &[
@@ -77,15 +78,17 @@ pub struct OpencvCalibration {
     pub stereo: Option<StereoExtrinsics>,
 }
 
-/// Reads a `.yml`/`.yaml`/`.xml` FileStorage file.
+/// Reads a `.yml`/`.yaml`/`.xml`/`.json` FileStorage file.
 pub fn read_path(path: &Path, limits: &Limits) -> Result<OpencvCalibration> {
     yaml_lite::read_with(path, limits, |b| parse(b, limits))
 }
 
-/// Parses YAML or XML (detected by a leading `<`).
+/// Parses YAML, XML (detected by a leading `<`) or JSON (a leading `{`).
 pub fn parse(bytes: &[u8], limits: &Limits) -> Result<OpencvCalibration> {
     let root = if is_xml(bytes) {
         xml_tree(bytes, limits)?
+    } else if opencv_json::is_json(bytes) {
+        opencv_json::parse(bytes, limits)?
     } else {
         yaml_lite::parse(bytes, limits)?
     };
@@ -296,12 +299,22 @@ pub(crate) fn camera_from_k(
     key: &str,
     line: u64,
 ) -> Result<CameraModel> {
+    camera_from_k_with(k, distortion, size, key, |e| e.at_line(line))
+}
+
+/// [`camera_from_k`] with the location given by `locate` (a byte offset for `.mat` files).
+pub(crate) fn camera_from_k_with(
+    k: &Matrix,
+    distortion: Distortion,
+    size: (u32, u32),
+    key: &str,
+    locate: impl Fn(IngestError) -> IngestError,
+) -> Result<CameraModel> {
     if (k.rows, k.cols) != (3, 3) {
-        return Err(IngestError::invalid(format!(
+        return Err(locate(IngestError::invalid(format!(
             "camera matrix `{key}` is {}x{}; expected 3x3",
             k.rows, k.cols
-        ))
-        .at_line(line));
+        ))));
     }
     let at = |i: usize| k.data.get(i).copied().unwrap_or(f64::NAN);
     let tail_ok = at(3).abs() < 1e-9
@@ -309,10 +322,9 @@ pub(crate) fn camera_from_k(
         && at(7).abs() < 1e-9
         && (at(8) - 1.0).abs() < 1e-9;
     if !tail_ok || at(0) <= 0.0 || at(4) <= 0.0 {
-        return Err(IngestError::invalid(format!(
+        return Err(locate(IngestError::invalid(format!(
             "camera matrix `{key}` must be [fx s cx; 0 fy cy; 0 0 1] with fx, fy > 0"
-        ))
-        .at_line(line));
+        ))));
     }
     Ok(CameraModel {
         model: MODEL_ID.to_string(),
@@ -393,14 +405,16 @@ pub(crate) fn metres_from_file_units(t: [f64; 3]) -> [f64; 3] {
 /// The formats [`read_any_calibration`] recognises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CalibrationFormat {
-    /// OpenCV FileStorage YAML or XML.
+    /// OpenCV FileStorage YAML, XML or JSON.
     Opencv,
     /// ROS `camera_info` YAML.
     Ros,
     /// Kalibr camchain YAML.
     Kalibr,
-    /// Bouguet `Calib_Results.m`.
+    /// Bouguet `Calib_Results.m` (or a user-made `Calib_Results_stereo.m`).
     Bouguet,
+    /// Bouguet `Calib_Results_stereo.mat` / `Calib_Results.mat` (MATLAB Level-5 binary).
+    BouguetMat,
 }
 
 /// Detects the format from the extension and content.
@@ -413,7 +427,10 @@ pub fn detect_format(path: &Path, bytes: &[u8], limits: &Limits) -> Result<Calib
     if ext == "m" {
         return Ok(CalibrationFormat::Bouguet);
     }
-    if ext == "xml" || is_xml(bytes) {
+    if ext == "mat" || bytes.starts_with(b"MATLAB ") {
+        return Ok(CalibrationFormat::BouguetMat);
+    }
+    if ext == "xml" || ext == "json" || is_xml(bytes) || opencv_json::is_json(bytes) {
         return Ok(CalibrationFormat::Opencv);
     }
     let root = yaml_lite::parse(bytes, limits)?;
@@ -447,6 +464,7 @@ pub fn read_any_cameras(path: &Path, limits: &Limits) -> Result<Vec<NamedCamera>
             CalibrationFormat::Bouguet => {
                 calib_bouguet::parse(bytes, limits).map(|m| vec![single(m)])
             }
+            CalibrationFormat::BouguetMat => calib_bouguet_mat::parse_cameras(bytes, limits),
         }
     })
 }
@@ -491,12 +509,13 @@ pub fn read_any_calibration(path: &Path) -> Result<CameraModel> {
 }
 
 /// `right_from_left` of any supported stereo file (`[rig].right_from_left`): OpenCV `R`,`T`,
-/// Bouguet `om`,`T`, or Kalibr `cam1.T_cn_cnm1`.
+/// Bouguet `om`,`T` (`.m` or `.mat`), or Kalibr `cam1.T_cn_cnm1`.
 pub fn read_any_stereo(path: &Path) -> Result<Pose> {
     let limits = Limits::default();
     yaml_lite::read_with(path, &limits, |bytes| {
         let pose = match detect_format(path, bytes, &limits)? {
             CalibrationFormat::Bouguet => Some(calib_bouguet::parse_stereo(bytes, &limits)?),
+            CalibrationFormat::BouguetMat => Some(calib_bouguet_mat::parse_stereo(bytes, &limits)?),
             CalibrationFormat::Kalibr => calib_kalibr::parse(bytes, &limits)?.right_from_left,
             CalibrationFormat::Opencv | CalibrationFormat::Ros => {
                 parse(bytes, &limits)?.stereo.map(|s| s.right_from_left)

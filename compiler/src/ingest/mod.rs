@@ -9,6 +9,7 @@
 
 pub mod c3d;
 pub mod calib_bouguet;
+pub mod calib_bouguet_mat;
 pub mod calib_kalibr;
 pub mod calib_opencv;
 pub mod calib_ros;
@@ -19,6 +20,7 @@ pub mod e57;
 pub mod images;
 pub mod las;
 pub mod markers;
+pub mod opencv_json;
 pub mod ply;
 pub mod ptx;
 pub mod riscan_ascii;

@@ -10,12 +10,17 @@
 //!   or `vertex_index`; per-vertex UVs are `texture_u/texture_v`, `s/t` or `u/v`, flipped to
 //!   the glTF convention (v down); names containing `reflectance` fill `reflectance_db`,
 //!   `intensity` or `scalar*` fill `intensity`.
+//! - Per-corner UVs (MeshLab / COLMAP textured meshes: `comment TextureFile texture.png` and a
+//!   face `property list uchar float texcoord`, u v per corner) split vertices per distinct
+//!   (vertex, uv) pair, as the VRML reader does for `texCoordIndex`, so [`TriMesh`] keeps one
+//!   uv per vertex; `texnumber` picks the `TextureFile` (one texture per mesh).
 //! - Polygons with more than three corners are fan-triangulated; an index outside the vertex
 //!   list or a face with fewer than three corners is an error naming the face.
 //! - Element counts from the header are checked against [`Limits`] before the payload is
 //!   read. The generic `ply-rs-bw` element maps cost ~10x a typed reader; that is fine for SfM
 //!   outputs (10^5–10^6 vertices) and is the place to optimise if huge PLYs show up.
 
+use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -184,7 +189,118 @@ fn corner_list(p: &Property) -> Option<Vec<i64>> {
     })
 }
 
+/// Face texture coordinates as `f64` from any numeric list type.
+fn number_list(p: &Property) -> Option<Vec<f64>> {
+    Some(match p {
+        Property::ListFloat(v) => v.iter().map(|&x| f64::from(x)).collect(),
+        Property::ListDouble(v) => v.clone(),
+        other => corner_list(other)?.into_iter().map(|x| x as f64).collect(),
+    })
+}
+
+const TEXCOORD: [&str; 2] = ["texcoord", "texcoords"];
+
+/// The checked corner indices of face `f`.
+fn face_corners(face: &DefaultElement, f: usize, n: usize) -> Result<Vec<u32>> {
+    let corners = ["vertex_indices", "vertex_index"]
+        .iter()
+        .find_map(|k| face.get(*k))
+        .and_then(corner_list);
+    let Some(corners) = corners else {
+        return Err(IngestError::syntax(
+            format!("an integer list vertex_indices on face {f}"),
+            "none",
+        ));
+    };
+    let idx = corners
+        .iter()
+        .map(|&c| u32::try_from(c).ok().filter(|&c| (c as usize) < n))
+        .collect::<Option<Vec<u32>>>()
+        .ok_or_else(|| {
+            IngestError::invalid(format!(
+                "face {f} has corners {corners:?}, expected indices below {n} vertices"
+            ))
+        })?;
+    if idx.len() < 3 {
+        return Err(IngestError::invalid(format!(
+            "face {f} has {} corners, expected at least 3",
+            idx.len()
+        )));
+    }
+    Ok(idx)
+}
+
+/// The per-corner UVs of face `f` (`texcoord`: u0 v0 u1 v1 ...), v flipped to glTF's convention.
+fn face_uvs(face: &DefaultElement, f: usize, corners: usize) -> Result<Vec<[f32; 2]>> {
+    let list = TEXCOORD
+        .iter()
+        .find_map(|k| face.get(*k))
+        .and_then(number_list)
+        .unwrap_or_default();
+    if list.len() != 2 * corners || !list.iter().all(|v| v.is_finite()) {
+        return Err(IngestError::invalid(format!(
+            "face {f} has {} texcoord values, expected {} finite ones (u v per corner)",
+            list.len(),
+            2 * corners
+        )));
+    }
+    Ok(list
+        .chunks_exact(2)
+        .map(|c| match c {
+            [u, v] => [*u as f32, (1.0 - v) as f32],
+            _ => [0.0; 2],
+        })
+        .collect())
+}
+
+/// The texture of a mesh: the `comment TextureFile` the faces' `texnumber` selects (the first
+/// one without `texnumber`); faces using two textures are unsupported (one texture per mesh,
+/// as for VRML).
+fn face_texture(header: &Header, faces: &[DefaultElement]) -> Result<Option<String>> {
+    let files: Vec<String> = header
+        .comments
+        .iter()
+        .filter_map(|c| {
+            let rest = c.trim().strip_prefix("TextureFile")?;
+            Some(rest.trim().to_string()).filter(|s| !s.is_empty())
+        })
+        .collect();
+    let mut used: Option<i64> = None;
+    for (f, face) in faces.iter().enumerate() {
+        let Some(n) = face.get("texnumber").and_then(scalar) else {
+            continue;
+        };
+        let n = n.0 as i64;
+        match used {
+            Some(u) if u != n => {
+                return Err(IngestError::Unsupported(format!(
+                "face {f} uses texture {n} and an earlier face texture {u}: one texture per mesh"
+            )))
+            }
+            _ => used = Some(n),
+        }
+    }
+    match used {
+        None => Ok(files.into_iter().next()),
+        Some(n) => usize::try_from(n)
+            .ok()
+            .and_then(|i| files.get(i).cloned())
+            .map(Some)
+            .ok_or_else(|| {
+                IngestError::invalid(format!(
+                    "faces use texnumber {n} but the header names {} `TextureFile`s",
+                    files.len()
+                ))
+            }),
+    }
+}
+
 /// Reads a PLY triangle mesh (e.g. an SfM reconstruction).
+///
+/// Per-corner texture coordinates (`property list uchar float texcoord` on faces, MeshLab and
+/// COLMAP textured meshes) are represented as the VRML reader represents them: a vertex per
+/// distinct (vertex, uv) pair, in order of first use, with per-vertex `uvs`; vertices no face
+/// uses are dropped in that case.
 pub fn read_ply_mesh(bytes: &[u8], limits: &Limits) -> Result<TriMesh> {
     let parsed = parse(bytes, limits)?;
     let Some(faces) = parsed.faces else {
@@ -194,17 +310,10 @@ pub fn read_ply_mesh(bytes: &[u8], limits: &Limits) -> Result<TriMesh> {
         ));
     };
     let n = parsed.vertices.len();
-    let mut mesh = TriMesh {
-        positions: limits.vec_with_capacity("vertices", n as u64)?,
-        texture: parsed.header.comments.iter().find_map(|c| {
-            let rest = c.trim().strip_prefix("TextureFile")?;
-            Some(rest.trim().to_string()).filter(|s| !s.is_empty())
-        }),
-        ..Default::default()
-    };
+    let mut positions = limits.vec_with_capacity("vertices", n as u64)?;
     let (mut colors, mut uvs) = (Vec::new(), Vec::new());
     for (i, v) in parsed.vertices.iter().enumerate() {
-        mesh.positions.push(position(v, i)?);
+        positions.push(position(v, i)?);
         if let Some(c) = color(v, i)? {
             colors.push(c);
         }
@@ -214,46 +323,76 @@ pub fn read_ply_mesh(bytes: &[u8], limits: &Limits) -> Result<TriMesh> {
             uvs.push([u as f32, (1.0 - w) as f32]);
         }
     }
-    mesh.colors = (!colors.is_empty() && colors.len() == n).then_some(colors);
-    mesh.uvs = (!uvs.is_empty() && uvs.len() == n).then_some(uvs);
+    let colors = (!colors.is_empty() && colors.len() == n).then_some(colors);
+    let per_corner = parsed
+        .header
+        .elements
+        .get("face")
+        .is_some_and(|d| TEXCOORD.iter().any(|k| d.properties.contains_key(*k)));
+    let mut mesh = TriMesh {
+        texture: face_texture(&parsed.header, &faces)?,
+        ..Default::default()
+    };
+    let mut split = CornerSplit::default();
     for (f, face) in faces.iter().enumerate() {
-        let corners = ["vertex_indices", "vertex_index"]
-            .iter()
-            .find_map(|k| face.get(*k))
-            .and_then(corner_list);
-        let Some(corners) = corners else {
-            return Err(IngestError::syntax(
-                format!("an integer list vertex_indices on face {f}"),
-                "none",
-            ));
-        };
-        let idx = corners
-            .iter()
-            .map(|&c| u32::try_from(c).ok().filter(|&c| (c as usize) < n))
-            .collect::<Option<Vec<u32>>>()
-            .ok_or_else(|| {
-                IngestError::invalid(format!(
-                    "face {f} has corners {corners:?}, expected indices below {n} vertices"
-                ))
-            })?;
-        let [first, rest @ ..] = idx.as_slice() else {
-            return Err(IngestError::invalid(format!(
-                "face {f} has no corners, expected at least 3"
-            )));
-        };
-        if rest.len() < 2 {
-            return Err(IngestError::invalid(format!(
-                "face {f} has {} corners, expected at least 3",
-                idx.len()
-            )));
+        let mut idx = face_corners(face, f, n)?;
+        if per_corner {
+            let corner_uvs = face_uvs(face, f, idx.len())?;
+            for (c, uv) in idx.iter_mut().zip(corner_uvs) {
+                *c = split.vertex(*c, uv, limits)?;
+            }
         }
-        mesh.triangles
-            .extend(rest.windows(2).filter_map(|w| match w {
-                [b, c] => Some([*first, *b, *c]),
-                _ => None,
-            }));
+        if let [first, rest @ ..] = idx.as_slice() {
+            mesh.triangles
+                .extend(rest.windows(2).filter_map(|w| match w {
+                    [b, c] => Some([*first, *b, *c]),
+                    _ => None,
+                }));
+        }
+    }
+    if per_corner {
+        let pick = |i: &u32| positions.get(*i as usize).copied().unwrap_or_default();
+        mesh.positions = split.source.iter().map(pick).collect();
+        mesh.colors = colors.map(|c| {
+            let pick = |i: &u32| c.get(*i as usize).copied().unwrap_or_default();
+            split.source.iter().map(pick).collect()
+        });
+        mesh.uvs = Some(split.uvs);
+    } else {
+        mesh.positions = positions;
+        mesh.colors = colors;
+        mesh.uvs = (!uvs.is_empty() && uvs.len() == n).then_some(uvs);
     }
     Ok(mesh)
+}
+
+/// Output vertices made per distinct (file vertex, uv) pair.
+#[derive(Default)]
+struct CornerSplit {
+    seen: HashMap<(u32, u32, u32), u32>,
+    /// File vertex of each output vertex.
+    source: Vec<u32>,
+    uvs: Vec<[f32; 2]>,
+}
+
+impl CornerSplit {
+    fn vertex(&mut self, v: u32, uv: [f32; 2], limits: &Limits) -> Result<u32> {
+        let next = self.source.len() as u32;
+        let id = *self
+            .seen
+            .entry((v, uv[0].to_bits(), uv[1].to_bits()))
+            .or_insert(next);
+        if id == next {
+            Limits::check_len(
+                "mesh vertices",
+                u64::from(next) + 1,
+                limits.max_points.min(u64::from(u32::MAX)),
+            )?;
+            self.source.push(v);
+            self.uvs.push(uv);
+        }
+        Ok(id)
+    }
 }
 
 /// Reads a PLY point cloud from disk; errors name the path.

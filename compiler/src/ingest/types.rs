@@ -81,3 +81,70 @@ pub struct MarkerTrack {
     /// Position per frame, metres.
     pub frames: Vec<Option<[f64; 3]>>,
 }
+
+/// Segment poses from a Vicon Nexus `Segments` section.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Segments {
+    /// Frame rate in Hz.
+    pub rate_hz: f64,
+    /// Frame number of the first row.
+    pub first_frame: i64,
+    /// Segments in file order.
+    pub segments: Vec<SegmentTrack>,
+}
+
+/// One segment's samples; `None` where any of its six cells is empty.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SegmentTrack {
+    /// Name without the subject prefix (`Subject01:Head` -> `Head`).
+    pub name: String,
+    /// Subject name, when the file gives `Subject:Segment`.
+    pub subject: Option<String>,
+    /// Pose per frame.
+    pub frames: Vec<Option<SegmentSample>>,
+}
+
+/// A segment pose as exported: `RX RY RZ` in degrees, `TX TY TZ` in metres.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SegmentSample {
+    /// `RX, RY, RZ` in degrees. Nexus does not write which representation these are (helical
+    /// or an Euler sequence: an export setting, formats.md §5.2), so they are kept as written.
+    pub rotation_deg: [f64; 3],
+    /// `TX, TY, TZ` in metres.
+    pub translation_m: [f64; 3],
+}
+
+/// Named model outputs (Plug-in Gait angles, powers, ...) from a Vicon Nexus `Model Outputs`
+/// section.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ModelOutputs {
+    /// Frame rate in Hz.
+    pub rate_hz: f64,
+    /// Frame number of the first row.
+    pub first_frame: i64,
+    /// Outputs in file order.
+    pub outputs: Vec<ModelOutput>,
+}
+
+/// One model output: a name over one or more columns (not always 3).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ModelOutput {
+    /// Name without the subject prefix (`Subject01:LAnkleAngles` -> `LAnkleAngles`).
+    pub name: String,
+    /// Subject name, when the file gives `Subject:Output`.
+    pub subject: Option<String>,
+    /// The output's columns in file order.
+    pub columns: Vec<ModelColumn>,
+}
+
+/// One column of a model output, values as written (no unit conversion: units such as `deg`,
+/// `N/kg`, `W/kg` or `mm` are kept in [`ModelColumn::unit`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ModelColumn {
+    /// Column role from the header row (`X`, `Y`, `Z`, `Count`, ...).
+    pub label: String,
+    /// Unit from the units row (may be empty).
+    pub unit: String,
+    /// Value per frame; `None` for an empty cell.
+    pub values: Vec<Option<f64>>,
+}

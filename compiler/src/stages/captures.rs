@@ -64,8 +64,12 @@ pub fn read_cameras(c: &Campaign) -> Result<Vec<NamedModel>, StageError> {
     c.cameras
         .iter()
         .map(|cam| {
-            let mut model =
-                calib_opencv::read_any_calibration(&c.root.join(&cam.calibration)).map_err(err)?;
+            let mut model = calib_opencv::read_calibration_entry(
+                &c.root.join(&cam.calibration),
+                cam.entry.as_deref(),
+                &regolith_format::limits::Limits::default(),
+            )
+            .map_err(err)?;
             if let Some([w, h]) = cam.image_size {
                 model.width = w;
                 model.height = h;
