@@ -291,7 +291,8 @@ fn laser_terrain(
         crate::stages::dem_raster::MaxEdge::Absolute(0.1),
         -0.1,
         1 << 28,
-    )?;
+    )?
+    .with_regression(Some(DEM_REGRESSION_SPACINGS));
     let rasters = raster.run(&ctx.cx, &tin)?;
     ctx.record(&raster);
     ctx.lap(DemRaster::NAME);
@@ -394,7 +395,8 @@ fn sfm_terrain(
             MaxEdge::SpacingFactor(4.0),
             -0.1,
             1 << 28,
-        )?;
+        )?
+        .with_regression(Some(DEM_REGRESSION_SPACINGS));
         for ras in raster.rasterize_all(&tin)? {
             let name = format!("{}/{}", t.name, cell_label(ras.cell_m));
             let texture = if t.texture == Texture::VertexColor {
@@ -527,7 +529,7 @@ fn encode_raster(
 
 /// Bumped whenever the pipeline's output bytes change for the same inputs (a stage's version,
 /// the entry layout, report contents), so the whole-compile cache never returns stale releases.
-pub const PIPELINE_VERSION: u32 = 4;
+pub const PIPELINE_VERSION: u32 = 5;
 
 fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
     let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "pipeline": PIPELINE_VERSION, "name": opts.name,
@@ -749,3 +751,8 @@ pub fn compile_path(
     let writer = Writer::create_or_open(db)?;
     compile(&c, &writer, &options(&c, release), progress)
 }
+
+/// Support of the terrain rasters' local-regression height estimate, in median TIN edges (see
+/// `stages::dem_regress`): about a dozen points per estimate at the usual scan density, which
+/// divides the range noise by about 3; albedo keeps its own cell-sized support.
+pub const DEM_REGRESSION_SPACINGS: f64 = 2.0;

@@ -31,6 +31,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::dem_regress::regress;
 use super::dem_tin::Tin;
 use super::geometry::median;
 use crate::stage::{Stage, StageCx, StageError};
@@ -71,6 +72,10 @@ pub struct RasterStats {
     pub tin_surface_area_m2: f64,
     /// The long-edge limit used, m.
     pub max_edge_m: f64,
+    /// Support radius of the local-regression cell estimate, m (0 = TIN interpolation only).
+    pub regression_support_m: f64,
+    /// Valid cells that kept the TIN value (regression ill-posed, or across a discontinuity).
+    pub regression_fallback_cells: usize,
 }
 
 /// A north-up height grid.
@@ -120,6 +125,7 @@ pub struct DemRaster {
     max_edge: MaxEdge,
     base_z_m: f64,
     max_cells: u64,
+    regression: Option<f64>,
 }
 
 impl Default for DemRaster {
@@ -130,6 +136,7 @@ impl Default for DemRaster {
             max_edge: MaxEdge::Absolute(0.1),
             base_z_m: -0.1,
             max_cells: 1 << 28,
+            regression: None,
         }
     }
 }
@@ -169,7 +176,16 @@ impl DemRaster {
             max_edge,
             base_z_m,
             max_cells,
+            regression: None,
         })
+    }
+
+    /// Estimates each valid cell by local regression over the TIN vertices within
+    /// `max(cell, factor × median TIN edge)` instead of interpolating the TIN at its centre (see
+    /// `dem_regress`); `None` keeps pure TIN interpolation.
+    pub fn with_regression(mut self, factor: Option<f64>) -> Self {
+        self.regression = factor.filter(|f| f.is_finite() && *f > 0.0);
+        self
     }
 
     /// Rasterises `tin` at every cell size.
@@ -188,16 +204,25 @@ impl DemRaster {
         };
         let tris = prepare(tin, max_edge_m);
         let tin_area = tin_area_inside(&tris, bounds);
+        let spacing = match self.regression {
+            Some(_) => median_edge(tin).unwrap_or(0.0),
+            None => 0.0,
+        };
         self.cell_sizes_m
             .iter()
             .map(|&cell| {
                 let mut r = rasterize(tin, &tris, bounds, cell, self.max_cells).map_err(err)?;
                 r.stats.base_z_m = self.base_z_m;
-                surface_stats(&mut r);
                 r.stats.tin_points = tin.vertices.len();
                 r.stats.tin_triangles = tin.triangles.len();
                 r.stats.tin_surface_area_m2 = tin_area;
                 r.stats.max_edge_m = max_edge_m;
+                if let Some(f) = self.regression {
+                    let support = cell.max(f * spacing);
+                    r.stats.regression_fallback_cells = regress(tin, &mut r, support, cell);
+                    r.stats.regression_support_m = support;
+                }
+                surface_stats(&mut r);
                 Ok(r)
             })
             .collect()
@@ -492,9 +517,10 @@ fn surface_stats(r: &mut Raster) {
 
 impl Stage for DemRaster {
     const NAME: &'static str = "dem.raster";
-    const VERSION: u32 = 1;
+    const VERSION: u32 = 2;
     const DESCRIPTION: &'static str =
-        "Rasterise the TIN into north-up height and albedo grids; long-edge triangles become nodata";
+        "Rasterise the TIN into north-up height and albedo grids; long-edge triangles become nodata; \
+         optionally estimate cells by local regression over the TIN vertices";
     type Input = Tin;
     type Output = Vec<Raster>;
 
@@ -505,6 +531,7 @@ impl Stage for DemRaster {
             "max_edge": self.max_edge,
             "base_z_m": self.base_z_m,
             "max_cells": self.max_cells,
+            "regression_support_factor": self.regression,
         })
     }
 

@@ -1,6 +1,7 @@
 //! The stages of `regolith compile`, one file each, in pipeline order (see `stage.rs`).
 pub mod captures;
 pub mod dem_raster;
+pub mod dem_regress;
 pub mod dem_tin;
 pub mod geometry;
 pub mod merge_clean;
