@@ -30,6 +30,7 @@ pub fn run(
     let opts = GapOptions {
         captures: captures.to_vec(),
         min_share,
+        keep_images: report.is_some(),
         ..GapOptions::default()
     };
     let result = gap::run(&view, entry, &opts)?;

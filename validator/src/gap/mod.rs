@@ -56,6 +56,8 @@ pub struct GapOptions {
     pub supersample: u32,
     /// Minimum held-out share of the stage error an effect must explain to be named.
     pub min_share: f64,
+    /// Keep each view's real mean and predictions in [`GapResult::images`] (for the report).
+    pub keep_images: bool,
 }
 
 impl Default for GapOptions {
@@ -64,6 +66,7 @@ impl Default for GapOptions {
             captures: Vec::new(),
             supersample: 2,
             min_share: 0.10,
+            keep_images: false,
         }
     }
 }
@@ -121,6 +124,28 @@ pub struct GapResult {
     pub model_after: SensorModel,
     /// Every candidate of every stage with its held-out error.
     pub candidates: BTreeMap<String, Vec<ScoredCandidate>>,
+    /// Per view, the images behind the figures (only with [`GapOptions::keep_images`]).
+    #[serde(skip)]
+    pub images: Vec<GapViewImages>,
+}
+
+/// The images of one view, before and after the named effects, in DN.
+#[derive(Debug, Clone)]
+pub struct GapViewImages {
+    /// Capture name.
+    pub capture: String,
+    /// Camera name.
+    pub camera: String,
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Mean of the real frames.
+    pub real: Vec<f32>,
+    /// Prediction with the model before; `NaN` where the render sees no terrain.
+    pub before: Vec<f32>,
+    /// Prediction with the model after; `NaN` where the render sees no terrain.
+    pub after: Vec<f32>,
 }
 
 /// Fold of each view: the index of its capture (views of one capture are held out together).
@@ -720,7 +745,31 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
     noise_stage(&ctx, &preds_before, &mut model, &mut found);
     let preds_after = ctx.predict_all(&model);
     let metrics_after = measure::measure(&ctx.views, &preds_after, &model);
+    let masked = |p: &Prediction| -> Vec<f32> {
+        p.dn.iter()
+            .zip(&p.mask)
+            .map(|(v, m)| if *m { *v } else { f32::NAN })
+            .collect()
+    };
+    let images = if opts.keep_images {
+        ctx.views
+            .iter()
+            .zip(preds_before.iter().zip(&preds_after))
+            .map(|(v, (pb, pa))| GapViewImages {
+                capture: v.capture.clone(),
+                camera: v.camera.clone(),
+                width: v.width,
+                height: v.height,
+                real: v.mean(),
+                before: masked(pb),
+                after: masked(pa),
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     Ok(GapResult {
+        images,
         release_id: view.id.to_hex(),
         entry: entry.to_string(),
         gap_metric: "photometric_rms_dn".into(),

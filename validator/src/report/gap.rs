@@ -9,9 +9,9 @@
 use std::path::{Path, PathBuf};
 
 use super::html::{Cell, Figure, Page};
-use super::plot::{bar_chart, line_plot, palette, Axes, BarGroup, Series};
+use super::plot::{bar_chart, image_strip, line_plot, palette, Axes, BarGroup, Raster, Series};
 use super::{io_err, ReportError};
-use crate::gap::{GapResult, Metrics};
+use crate::gap::{GapResult, GapViewImages, Metrics};
 
 fn before_after(
     before: &Metrics,
@@ -22,6 +22,30 @@ fn before_after(
         Series::new("before", pick(before), palette(0)),
         Series::new("after", pick(after), palette(1)),
     ]
+}
+
+/// Half-range of the residual colour map, DN.
+const RESIDUAL_DN: f32 = 48.0;
+
+/// Real | before | real − before | after | real − after of one view.
+fn residual_strip(path: &Path, v: &GapViewImages) -> Result<(), ReportError> {
+    let (w, h) = (v.width as u32, v.height as u32);
+    let unit = |x: &[f32]| x.iter().map(|d| d / 255.0).collect::<Vec<f32>>();
+    let residual = |p: &[f32]| {
+        v.real
+            .iter()
+            .zip(p)
+            .map(|(r, p)| r - p)
+            .collect::<Vec<f32>>()
+    };
+    let panels = [
+        Raster::grey(w, h, &unit(&v.real)),
+        Raster::grey(w, h, &unit(&v.before)),
+        Raster::diverging(w, h, &residual(&v.before), -RESIDUAL_DN, RESIDUAL_DN),
+        Raster::grey(w, h, &unit(&v.after)),
+        Raster::diverging(w, h, &residual(&v.after), -RESIDUAL_DN, RESIDUAL_DN),
+    ];
+    Ok(image_strip(path, &panels, 8)?)
 }
 
 /// Writes the report of `r` into `dir` (created if needed); returns the path of `index.html`.
@@ -170,6 +194,23 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
     }
     page.heading(2, "Where the disagreement is", None);
     page.figures(&figs);
+    if !r.images.is_empty() {
+        page.heading(2, "Residual maps per view", None);
+        page.paragraph(&format!(
+            "Real (mean of the frames) | prediction before | real − before | prediction after | real − after; residuals in DN, blue −{RESIDUAL_DN} … red +{RESIDUAL_DN}; pixels where the render sees no terrain are black in the predictions and marked as no data in the residuals."
+        ));
+        let mut maps = Vec::new();
+        for v in &r.images {
+            let file = format!("residual_{}_{}.png", v.capture, v.camera);
+            residual_strip(&dir.join(&file), v)?;
+            maps.push(Figure::new(
+                file,
+                format!("{} {}", v.capture, v.camera),
+                1200,
+            ));
+        }
+        page.figures(&maps);
+    }
     let index = dir.join("index.html");
     page.write(&index).map_err(io_err(&index))?;
     Ok(index)
