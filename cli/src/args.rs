@@ -90,8 +90,9 @@ pub enum Command {
         /// Detectors (harris, fast, sift, surf, mser; default: all); repeatable.
         #[arg(long)]
         detector: Vec<String>,
-        /// JSON file overriding thresholds (`epsilon_px`, `min_ratio_to_ceiling`,
-        /// `min_repeatability`, `max_photometric_rms`).
+        /// JSON file overriding thresholds (`epsilon_px`, `min_mean_ratio_to_ceiling`,
+        /// `min_ratio_to_ceiling`, `min_repeatability`, `max_photometric_rms`,
+        /// `min_high_band_log_ratio`; defaults and their calibration: validator/src/validate.rs).
         #[arg(long)]
         thresholds: Option<PathBuf>,
         /// Also write an offline HTML report (index.html + PNG figures) into this folder:

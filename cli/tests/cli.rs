@@ -1,18 +1,13 @@
 //! The `regolith` binary as a user runs it: exit codes, JSON output, export files.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
+use std::path::Path;
+
+use common::regolith;
 use regolith_reader::Writer;
 use serde_json::Value;
-
-fn regolith(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_regolith"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn sample_db(dir: &Path) -> String {
     let db = dir.join("db");

@@ -3,19 +3,15 @@
 //! same bytes.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
+use common::regolith;
 use regolith_validator::report::{overlay_scale, plot::CHART_SIZE};
 use serde_json::Value;
-
-fn regolith(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_regolith"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn ok(out: &Output, codes: &[i32]) {
     assert!(
@@ -105,11 +101,7 @@ fn validate_writes_a_self_contained_report() {
     let html = std::fs::read_to_string(&index).unwrap();
     assert!(html.starts_with("<!DOCTYPE html>") && html.contains("laser/0.02"));
     for failure in v["entries"][0]["failures"].as_array().unwrap() {
-        let f = failure
-            .as_str()
-            .unwrap()
-            .replace('<', "&lt;")
-            .replace('>', "&gt;");
+        let f = regolith_validator::report::html::escape(failure.as_str().unwrap());
         assert!(html.contains(&f), "failure message in the page: {f}");
     }
     assert!(!html.contains("http://") && !html.contains("https://") && !html.contains("<script"));

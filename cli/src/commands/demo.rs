@@ -11,10 +11,25 @@ use regolith_compiler::compile;
 use regolith_format::kinds;
 use regolith_reader::{verify, Database, Writer};
 use regolith_validator::gap::{self, apply, GapOptions};
-use regolith_validator::validate::{validate_entry, ValidateOptions};
+use regolith_validator::validate::{validate_entry, Certificate, ValidateOptions};
 
 use super::print_json;
 use crate::Outcome;
+
+/// One line per certificate: verdict, mean repeatability ratio to the real-vs-real ceiling, and
+/// the first failed criterion.
+fn print_certificate(c: &Certificate, prefix: &str) {
+    println!(
+        "  {prefix}certificate {:<14} {} (mean repeatability ratio to the real-vs-real ceiling {}){}",
+        c.entry,
+        if c.passed { "PASS" } else { "FAIL" },
+        c.mean_ratio_to_ceiling
+            .map_or("n/a".into(), |r| format!("{:.2}", r.mean)),
+        c.failures
+            .first()
+            .map_or(String::new(), |f| format!(": {f}"))
+    );
+}
 
 pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
     if !campaign.join("campaign.toml").is_file() {
@@ -74,7 +89,18 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
                     serde_json::json!({"release": view.label(), "named": result.named.iter().map(|n| &n.effect).collect::<Vec<_>>()}),
                 )?)
             };
-            Some((result, applied))
+            // The loop closes: the entry is validated again in the child release, through the
+            // fitted sensor model.
+            let revalidated = match &applied {
+                Some((label, _)) => {
+                    let child = db.release(label)?;
+                    let cert = validate_entry(&child, entry, &ValidateOptions::default())?;
+                    writer.put_certificate(&child.id, entry, &cert)?;
+                    Some(cert)
+                }
+                None => None,
+            };
+            Some((result, applied, revalidated))
         }
         None => None,
     };
@@ -87,10 +113,12 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
     if json {
         print_json(
             &serde_json::json!({"db": db_path, "compile": summary, "verify_ok": report.ok(),
-            "gap": gap_round.as_ref().map(|(r, applied)| serde_json::json!({
+            "certificates": certificates.iter().map(|c| serde_json::json!({"entry": c.entry, "passed": c.passed, "failures": c.failures})).collect::<Vec<_>>(),
+            "gap": gap_round.as_ref().map(|(r, applied, revalidated)| serde_json::json!({
                 "entry": r.entry, "named": r.named, "gap_metric": r.gap_metric,
                 "gap_before": r.gap_before, "gap_after": r.gap_after,
                 "applied": applied.as_ref().map(|(label, _)| label),
+                "revalidated": revalidated.as_ref().map(|c| serde_json::json!({"passed": c.passed, "failures": c.failures})),
                 "hidden_truth": hidden["effects"],
             }))}),
         )?;
@@ -109,20 +137,9 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
             );
         }
         for c in &certificates {
-            let sift = c
-                .summary
-                .get("sift")
-                .and_then(|s| s.ratio)
-                .map_or(0.0, |r| r.mean);
-            println!(
-                "  certificate {:<14} {} (SIFT repeatability / real-vs-real ceiling {:.2}; {} failed criteria)",
-                c.entry,
-                if c.passed { "PASS" } else { "FAIL" },
-                sift,
-                c.failures.len()
-            );
+            print_certificate(c, "");
         }
-        if let Some((r, applied)) = &gap_round {
+        if let Some((r, applied, revalidated)) = &gap_round {
             println!("  gap {}:", r.entry);
             if r.named.is_empty() {
                 println!("    no effect explains a significant share of the gap");
@@ -152,6 +169,9 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
             );
             if let Some((label, _)) = applied {
                 println!("    model written to release {label}");
+            }
+            if let Some(c) = revalidated {
+                print_certificate(c, "  (with the fitted model) ");
             }
         }
         println!("verify: {}", if report.ok() { "intact" } else { "CORRUPT" });

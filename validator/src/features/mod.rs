@@ -25,7 +25,6 @@ pub mod synthetic;
 
 use std::str::FromStr;
 
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 pub use self::image::GreyF32;
@@ -159,31 +158,16 @@ pub fn describe_with(
 
 /// Squared Euclidean distance.
 #[inline]
-fn dist2(a: &[f32], b: &[f32]) -> f32 {
-    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
-}
-
 /// Nearest-neighbour matching of `a` against `b` with Lowe's ratio test: `(i, j)` is kept when
 /// `b[j]` is the nearest to `a[i]` and `‖a_i − b_j‖ < ratio · ‖a_i − b_second‖` (Euclidean
 /// distances; Lowe used 0.8). Ties go to the lower index; the output is in `i` order.
 pub fn brute_force_match(a: &[Vec<f32>], b: &[Vec<f32>], ratio: f32) -> Vec<(usize, usize)> {
-    let r2 = ratio * ratio;
-    a.par_iter()
-        .enumerate()
-        .filter_map(|(i, da)| {
-            let (mut best, mut second, mut bj) = (f32::INFINITY, f32::INFINITY, None);
-            for (j, db) in b.iter().enumerate() {
-                let d = dist2(da, db);
-                if d < best {
-                    second = best;
-                    best = d;
-                    bj = Some(j);
-                } else if d < second {
-                    second = d;
-                }
-            }
-            let j = bj?;
-            (second.is_infinite() || best < r2 * second).then_some((i, j))
-        })
+    let params = crate::metrics::matching::MatchParams {
+        ratio,
+        mutual: false,
+    };
+    crate::metrics::matching::match_descriptors(a, b, &params)
+        .into_iter()
+        .map(|m| (m.a, m.b))
         .collect()
 }

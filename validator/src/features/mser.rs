@@ -366,7 +366,12 @@ pub fn mser_regions(img: &GreyF32, p: &MserParams) -> Vec<Region> {
 
 /// MSER keypoints: one per region (centroid; response `1 − variation`).
 pub fn detect_mser(img: &GreyF32, p: &MserParams) -> Vec<Keypoint> {
-    let mut kps: Vec<Keypoint> = mser_regions(img, p).iter().map(Region::keypoint).collect();
+    mser_keypoints(&mser_regions(img, p))
+}
+
+/// The keypoints of `regions` in canonical order (what [`detect_mser`] returns for them).
+pub fn mser_keypoints(regions: &[Region]) -> Vec<Keypoint> {
+    let mut kps: Vec<Keypoint> = regions.iter().map(Region::keypoint).collect();
     sort_keypoints(&mut kps);
     kps
 }

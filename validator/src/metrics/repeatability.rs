@@ -55,17 +55,42 @@ fn greedy_pairs(a: &[[f64; 2]], b: &[[f64; 2]], max_dist: f64) -> Vec<(f64, usiz
             }
         }
     }
+    greedy_one_to_one(cand, a.len(), b.len())
+}
+
+/// One-to-one greedy bipartite matching: candidates `(cost, index in a, index in b)` are taken
+/// in increasing cost (ties by `i`, then `j`), each skipped if either side is already used.
+/// Returns the kept candidates in that order. Indices `≥ n_a` / `≥ n_b` are ignored.
+///
+/// Shared by point repeatability (cost = distance), the matching score (cost = descriptor
+/// distance) and region repeatability (cost = overlap error), so all three pair the same way.
+pub(super) fn greedy_one_to_one(
+    mut cand: Vec<(f64, usize, usize)>,
+    n_a: usize,
+    n_b: usize,
+) -> Vec<(f64, usize, usize)> {
     cand.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
-    let (mut used_a, mut used_b) = (vec![false; a.len()], vec![false; b.len()]);
+    let (mut used_a, mut used_b) = (vec![false; n_a], vec![false; n_b]);
     let mut out = Vec::new();
     for (d, i, j) in cand {
-        if !used_a[i] && !used_b[j] {
-            used_a[i] = true;
-            used_b[j] = true;
-            out.push((d, i, j));
+        if let (Some(ua), Some(ub)) = (used_a.get_mut(i), used_b.get_mut(j)) {
+            if !*ua && !*ub {
+                *ua = true;
+                *ub = true;
+                out.push((d, i, j));
+            }
         }
     }
     out
+}
+
+/// `num / den`, or 0 when `den` is 0: every score here is a count over a count that may be empty.
+pub(super) fn fraction(num: usize, den: usize) -> f64 {
+    if den == 0 {
+        0.0
+    } else {
+        num as f64 / den as f64
+    }
 }
 
 /// Repeatability of `a` (mapped by `map_a_to_b`, `None` = not visible in B) against `b`, at
@@ -92,36 +117,28 @@ pub fn repeatability(
                 greedy_pairs(&a_mapped, &b_in, eps).len()
             };
             let (n_a, n_b) = (a_mapped.len(), b_in.len());
-            let denom = n_a.min(n_b);
             Repeatability {
                 epsilon_px: eps,
                 n_a,
                 n_b,
                 repeated,
-                score: if denom == 0 {
-                    0.0
-                } else {
-                    repeated as f64 / denom as f64
-                },
-                one_directional: if n_a == 0 {
-                    0.0
-                } else {
-                    repeated as f64 / n_a as f64
-                },
+                score: fraction(repeated, n_a.min(n_b)),
+                one_directional: fraction(repeated, n_a),
             }
         })
         .collect()
 }
 
-/// The points of `a` (mapped into B) and of `b` that lie in the common region, each with its
-/// index in the input.
+/// The features of `a` (mapped into B) and of `b` that lie in the common region, each with its
+/// index in the input. Generic over the feature (a point here, an ellipse for region
+/// repeatability) so every metric applies the mapping and the common region the same way.
 #[allow(clippy::type_complexity)]
-fn common_points(
-    a: &[[f64; 2]],
-    b: &[[f64; 2]],
-    map_a_to_b: impl Fn([f64; 2]) -> Option<[f64; 2]>,
-    in_common: impl Fn([f64; 2]) -> bool,
-) -> (Vec<(usize, [f64; 2])>, Vec<(usize, [f64; 2])>) {
+pub(super) fn common_points<P: Copy>(
+    a: &[P],
+    b: &[P],
+    map_a_to_b: impl Fn(P) -> Option<P>,
+    in_common: impl Fn(P) -> bool,
+) -> (Vec<(usize, P)>, Vec<(usize, P)>) {
     let a_mapped = a
         .iter()
         .enumerate()

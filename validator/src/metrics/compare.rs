@@ -1,0 +1,166 @@
+//! One detector on one view: real frame a against the render (the figure) and against real
+//! frame b at the same pose (the ceiling), with every metric the certificate keeps for it.
+//!
+//! Why here: the detector-specific protocols differ (points are repeated within ε pixels; MSER
+//! regions by ellipse overlap error < 40 %, as the Mikolajczyk protocol prescribes for region
+//! detectors; SIFT additionally gets the matching score and a RANSAC inlier ratio, the thesis's
+//! Table 6.1 analogue), and each detector must run once per image, not once per metric. This
+//! module runs the detector once per image and derives every metric from that one result.
+//!
+//! The views compared share the pose, so the mapping between them is the identity and the region
+//! both see is the render's terrain mask. For SIFT + RANSAC the model is a homography (the
+//! identity is one); a fundamental matrix is undetermined without a baseline.
+
+use serde::Serialize;
+
+use super::matching::{
+    match_and_verify, match_descriptors, matching_score, MatchParams, MatchReport, MatchingScore,
+};
+use super::ransac::RansacParams;
+use super::region_overlap::{region_repeatability, Ellipse, RegionParams, RegionRepeatability};
+use super::repeatability::{repeatability, repeated_pairs, Repeatability};
+use crate::features::mser::{mser_keypoints, mser_regions};
+use crate::features::sift::detect_and_describe_sift;
+use crate::features::{self, Detector, DetectorParams, GreyF32, Keypoint};
+
+/// SIFT matching figures of one pair of images.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MatchingFigures {
+    /// Matching score (Mikolajczyk & Schmid) at the certified ε.
+    pub score: MatchingScore,
+    /// Ratio-test matches verified by a RANSAC homography.
+    pub ransac: MatchReport,
+}
+
+/// Everything measured for one detector on one view.
+#[derive(Debug, Clone)]
+pub struct DetectorComparison {
+    /// Keypoints of real frame a.
+    pub real: Vec<Keypoint>,
+    /// Keypoints of the render.
+    pub render: Vec<Keypoint>,
+    /// Point repeatability real → render over the ε curve.
+    pub sim: Vec<Repeatability>,
+    /// Point repeatability real a → real b at the certified ε.
+    pub ceiling: Option<f64>,
+    /// `(real, render)` index pairs repeated at the certified ε (for overlays).
+    pub repeated: Vec<(usize, usize)>,
+    /// MSER only: region repeatability real → render and real a → real b (overlap error).
+    pub regions: Option<(RegionRepeatability, Option<RegionRepeatability>)>,
+    /// SIFT only: matching real → render and real a → real b.
+    pub matching: Option<(MatchingFigures, Option<MatchingFigures>)>,
+}
+
+/// A detector's output on one image: keypoints, plus descriptors (SIFT) or regions (MSER).
+struct Detected {
+    kps: Vec<Keypoint>,
+    descriptors: Vec<Vec<f32>>,
+    ellipses: Vec<Ellipse>,
+}
+
+fn detect(img: &GreyF32, d: Detector, params: &DetectorParams) -> Detected {
+    match d {
+        Detector::Sift => {
+            let (kps, descriptors) = detect_and_describe_sift(img, &params.sift);
+            Detected {
+                kps,
+                descriptors,
+                ellipses: Vec::new(),
+            }
+        }
+        Detector::Mser => {
+            let regions = mser_regions(img, &params.mser);
+            Detected {
+                kps: mser_keypoints(&regions),
+                descriptors: Vec::new(),
+                ellipses: regions.iter().map(Ellipse::from_region).collect(),
+            }
+        }
+        _ => Detected {
+            kps: features::detect(img, d, params),
+            descriptors: Vec::new(),
+            ellipses: Vec::new(),
+        },
+    }
+}
+
+fn points(k: &[Keypoint]) -> Vec<[f64; 2]> {
+    k.iter().map(|p| [f64::from(p.x), f64::from(p.y)]).collect()
+}
+
+fn matching(
+    a: &Detected,
+    b: &Detected,
+    seen: &impl Fn([f64; 2]) -> bool,
+    eps: f64,
+) -> MatchingFigures {
+    let params = MatchParams::default();
+    let matches = match_descriptors(&a.descriptors, &b.descriptors, &params);
+    MatchingFigures {
+        score: matching_score(&points(&a.kps), &points(&b.kps), &matches, Some, seen, eps),
+        ransac: match_and_verify(
+            &a.kps,
+            &a.descriptors,
+            &b.kps,
+            &b.descriptors,
+            &params,
+            &RansacParams::homography(),
+        ),
+    }
+}
+
+/// The images of one view, contrast-normalised alike.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewImages<'a> {
+    /// Real frame a.
+    pub real_a: &'a GreyF32,
+    /// The render at the same pose.
+    pub render: &'a GreyF32,
+    /// Real frame b at the same pose, when the campaign has repeat frames.
+    pub real_b: Option<&'a GreyF32>,
+}
+
+/// Runs detector `d` on the view's real frame a, render and real frame b (when present) and
+/// measures: point repeatability over `curve` (which contains `eps`), the ceiling at `eps`, and
+/// the detector-specific metrics. `seen(p)` says whether pixel `p` shows terrain in the render.
+pub fn compare(
+    images: ViewImages<'_>,
+    d: Detector,
+    params: &DetectorParams,
+    seen: impl Fn([f64; 2]) -> bool,
+    curve: &[f64],
+    eps: f64,
+) -> DetectorComparison {
+    let a = detect(images.real_a, d, params);
+    let s = detect(images.render, d, params);
+    let b = images.real_b.map(|img| detect(img, d, params));
+    let (pa, ps) = (points(&a.kps), points(&s.kps));
+    let sim = repeatability(&pa, &ps, Some, &seen, curve);
+    let ceiling = b
+        .as_ref()
+        .map(|b| repeatability(&pa, &points(&b.kps), Some, &seen, &[eps])[0].score);
+    let repeated = repeated_pairs(&pa, &ps, Some, &seen, eps);
+    let regions = (d == Detector::Mser).then(|| {
+        let rp = RegionParams::default();
+        (
+            region_repeatability(&a.ellipses, &s.ellipses, Some, &seen, &rp),
+            b.as_ref()
+                .map(|b| region_repeatability(&a.ellipses, &b.ellipses, Some, &seen, &rp)),
+        )
+    });
+    let matching = (d == Detector::Sift).then(|| {
+        (
+            matching(&a, &s, &seen, eps),
+            b.as_ref().map(|b| matching(&a, b, &seen, eps)),
+        )
+    });
+    DetectorComparison {
+        real: a.kps,
+        render: s.kps,
+        sim,
+        ceiling,
+        repeated,
+        regions,
+        matching,
+    }
+}
