@@ -11,9 +11,15 @@ Reads the files written by `cargo run -p regolith-validator --release --example 
   camera x right, y down, z forward).
 * depth.f32: regolith's undistorted depth (camera z, NaN = nothing seen).
 
+* radiance.f32 + albedo.f32 + view.json's light: regolith's shaded image.
+
 It casts one ray per pixel centre through `open3d.t.geometry.RaycastingScene`, converts the
 hit distance to camera z, and prints the RMS and maximum depth difference over the pixels both
 renderers see, plus the share of pixels whose hit/miss status differs. Target: RMS <= 1 mm.
+It then shades Open3D's hits with the same model written independently here (Lambertian with
+an ambient share, Open3D's triangle normal turned upward, albedo bilinear between cell centres
+and clamped at the edges) and prints the image RMS against regolith's radiance, in 8-bit grey
+levels (radiance x 255). Target: < 0.5 grey level.
 
 Usage: python3 tools/peers/render_open3d.py DIR
 """
@@ -78,7 +84,34 @@ def main(folder):
     print(f"open3d {o3d.__version__}: {both.sum()} pixels compared, depth RMS {rms * 1e3:.4f} mm, "
           f"max {np.abs(diff).max() * 1e3:.4f} mm, 99th pct {np.percentile(np.abs(diff), 99) * 1e3:.4f} mm, "
           f"hit/miss differs at {status_differs * 100:.3f}% of pixels")
-    return 0 if rms <= 1e-3 else 1
+    # The image: shade Open3D's hits independently and compare with regolith's radiance.
+    light = view["light"]
+    az, el = np.radians(light["azimuth_deg"]), np.radians(light["elevation_deg"])
+    to_light = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    hits = scene.cast_rays(o3d.core.Tensor(rays))
+    normals = hits["primitive_normals"].numpy().reshape(ours.shape + (3,)).astype(np.float64)
+    normals *= np.where(normals[..., 2:3] < 0, -1.0, 1.0)
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True).clip(1e-12)
+    points = dirs * t_hit[..., None] + np.asarray(pose["translation_m"])
+    am = meta["albedo"]
+    alb = np.fromfile(d / am["file"], dtype="<f4").astype(np.float64).reshape(am["height"], am["width"])
+    uu = ((points[..., 0] - am["origin_m"][0]) / am["cell_m"]).clip(0, am["width"] - 1)
+    vv = ((am["origin_m"][1] - points[..., 1]) / am["cell_m"]).clip(0, am["height"] - 1)
+    uu, vv = np.nan_to_num(uu), np.nan_to_num(vv)
+    c0, r0 = np.floor(uu).astype(int), np.floor(vv).astype(int)
+    c1, r1 = np.minimum(c0 + 1, am["width"] - 1), np.minimum(r0 + 1, am["height"] - 1)
+    fu, fv = uu - c0, vv - r0
+    albedo = ((1 - fu) * (1 - fv) * alb[r0, c0] + fu * (1 - fv) * alb[r0, c1]
+              + (1 - fu) * fv * alb[r1, c0] + fu * fv * alb[r1, c1])
+    n_dot_l = np.clip((normals * to_light).sum(-1), 0.0, None)
+    peer = albedo * (light["ambient"] + (1 - light["ambient"]) * n_dot_l)
+    ours_rad = np.fromfile(d / "radiance.f32", dtype="<f4").astype(np.float64).reshape(ours.shape)
+    dimg = (ours_rad[both] - peer[both]) * 255.0
+    img_rms = float(np.sqrt(np.mean(dimg ** 2)))
+    print(f"image: {both.sum()} pixels compared, RMS {img_rms:.4f} grey levels, "
+          f"99th pct {np.percentile(np.abs(dimg), 99):.4f}, max {np.abs(dimg).max():.3f} "
+          f"(mean radiance ours {ours_rad[both].mean():.4f}, Open3D-shaded {peer[both].mean():.4f})")
+    return 0 if rms <= 1e-3 and img_rms < 0.5 else 1
 
 
 if __name__ == "__main__":

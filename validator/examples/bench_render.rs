@@ -214,10 +214,11 @@ fn main() -> std::io::Result<()> {
     Ok(())
 }
 
-/// Writes `heightfield.json` + `heightfield.f32`, `view.json` and `depth.f32` (undistorted
-/// pinhole render, since Open3D has no lens distortion).
+/// Writes `heightfield.json` + `heightfield.f32` + `albedo.f32`, `view.json` (with the light)
+/// and `depth.f32` + `radiance.f32` (undistorted pinhole render, one ray per pixel centre, since
+/// Open3D has no lens distortion).
 fn export_peer(dir: &std::path::Path, g: &Geometry) -> std::io::Result<()> {
-    let Geometry::Heightfield { grid, .. } = g else {
+    let Geometry::Heightfield { grid, albedo } = g else {
         return Ok(());
     };
     std::fs::create_dir_all(dir)?;
@@ -239,9 +240,13 @@ fn export_peer(dir: &std::path::Path, g: &Geometry) -> std::io::Result<()> {
     let bytes = |xs: &[f32]| xs.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
     std::fs::write(dir.join("heightfield.f32"), bytes(&grid.z))?;
     std::fs::write(dir.join("depth.f32"), bytes(&r.depth))?;
+    std::fs::write(dir.join("radiance.f32"), bytes(&r.radiance))?;
+    std::fs::write(dir.join("albedo.f32"), bytes(&albedo.value))?;
     let meta = serde_json::json!({
         "origin_m": grid.origin_m, "cell_m": grid.cell_m, "width": grid.width, "height": grid.height,
         "split": "nw-se", "z": "heightfield.f32 (f32 LE, row-major, row 0 = north)",
+        "albedo": {"file": "albedo.f32", "origin_m": albedo.origin_m, "cell_m": albedo.cell_m,
+                   "width": albedo.width, "height": albedo.height},
     });
     std::fs::write(
         dir.join("heightfield.json"),
@@ -251,6 +256,8 @@ fn export_peer(dir: &std::path::Path, g: &Geometry) -> std::io::Result<()> {
     let view_json = serde_json::json!({
         "width": cam.width, "height": cam.height, "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
         "ground_from_camera": v.ground_from_camera, "depth": "depth.f32 (f32 LE camera z, NaN = miss)",
+        "radiance": "radiance.f32 (f32 LE, albedo x (ambient + (1 - ambient) max(0, n.l)), 0 = miss)",
+        "light": light,
     });
     std::fs::write(
         dir.join("view.json"),
