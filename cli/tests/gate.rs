@@ -1,6 +1,7 @@
 //! The release gate end to end on a corpus campaign: the finest laser entry earns a passing
 //! certificate, a deliberately coarse 0.05 m raster fails it with the metric and shortfall named,
-//! `release --publish` refuses while it fails, and the entries rank as their data predicts.
+//! `release --publish` refuses while it fails, the entries rank as their data predicts, and hidden
+//! sensor effects move the metrics the way the effect predicts (blur, noise).
 //! Seed 7 is one of the eight campaigns the default thresholds were calibrated on (see
 //! `tools/calibrate/validate_thresholds.py` and `Thresholds`), run with a two-raster laser
 //! terrain: the test pins that the gate keeps behaving on it as calibrated.
@@ -100,5 +101,83 @@ fn a_coarse_raster_fails_its_certificate_and_blocks_publishing() {
     assert!(
         text.contains("laser/0.05") && text.contains("fine detail"),
         "{text}"
+    );
+}
+
+/// Compiles a mini seed-7 campaign with `hidden` effects and returns laser/0.01's certificate.
+fn certificate_with(dir: &std::path::Path, name: &str, hidden: &[&str]) -> Value {
+    let camp = dir.join(name);
+    let db = dir
+        .join(format!("{name}-db"))
+        .to_string_lossy()
+        .into_owned();
+    let mut args = vec!["corpus", "generate", "--preset", "mini", "--seed", "7"];
+    args.extend_from_slice(hidden);
+    args.extend_from_slice(&["--out", camp.to_str().unwrap()]);
+    let out = regolith(&args);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = regolith(&["compile", camp.to_str().unwrap(), "--db", &db]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    certificate(&db, &validate(&db, "laser/0.01"))
+}
+
+#[test]
+fn hidden_effects_move_the_metrics_the_way_the_effect_predicts() {
+    let dir = tempfile::tempdir().unwrap();
+    let none = certificate_with(dir.path(), "none", &[]);
+    let blur = certificate_with(
+        dir.path(),
+        "blur",
+        &[
+            "--hidden-effect",
+            "blur",
+            "--effect-param",
+            "blur.sigma_px=1.5",
+        ],
+    );
+    let noise = certificate_with(
+        dir.path(),
+        "noise",
+        &[
+            "--hidden-effect",
+            "noise",
+            "--effect-param",
+            "noise.gain=0.4",
+            "--effect-param",
+            "noise.read_sigma=3",
+        ],
+    );
+    let band = |c: &Value| c["high_band_log_ratio"].as_f64().unwrap();
+    let ceiling = |c: &Value| c["summary"]["fast"]["ceiling"]["mean"].as_f64().unwrap();
+    // Blur removes fine detail from the real images only: the render now has more of it.
+    assert!(
+        band(&blur) > band(&none) + 0.5,
+        "{} vs {}",
+        band(&blur),
+        band(&none)
+    );
+    // Noise adds fine-scale power to the real images only, and makes two real frames of one
+    // pose agree less: the render has relatively less fine detail, and the ceiling drops.
+    assert!(
+        band(&noise) < band(&none) - 0.15,
+        "{} vs {}",
+        band(&noise),
+        band(&none)
+    );
+    assert!(
+        ceiling(&noise) < 0.8 * ceiling(&none),
+        "{} vs {}",
+        ceiling(&noise),
+        ceiling(&none)
     );
 }
