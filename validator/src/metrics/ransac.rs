@@ -194,21 +194,33 @@ fn add_row(ata: &mut SMatrix<f64, 9, 9>, r: &[f64; 9]) {
     }
 }
 
+/// The normalised direct linear transform shared by F and H: Hartley-normalises both point sets
+/// over `idx`, accumulates `AᵀA` from the rows `rows(p, q, ·)` adds for each normalised pair,
+/// and returns the two normalising transforms and the unit null vector of `A`.
+fn normalised_dlt(
+    a: &[[f64; 2]],
+    b: &[[f64; 2]],
+    idx: &[usize],
+    rows: impl Fn([f64; 2], [f64; 2], &mut SMatrix<f64, 9, 9>),
+) -> Option<(Matrix3<f64>, Matrix3<f64>, [f64; 9])> {
+    let ta = normaliser(idx.iter().filter_map(|&i| a.get(i)))?;
+    let tb = normaliser(idx.iter().filter_map(|&i| b.get(i)))?;
+    let mut ata = SMatrix::<f64, 9, 9>::zeros();
+    for &i in idx {
+        rows(apply(&ta, a.get(i)?), apply(&tb, b.get(i)?), &mut ata);
+    }
+    Some((ta, tb, null_vector(ata)?))
+}
+
 /// Least-squares fundamental matrix (normalised 8-point, rank 2) from the correspondences
 /// `a[i] ↔ b[i]`, `i` in `idx` (at least 8), with `x_bᵀ F x_a = 0`.
 pub fn fit_fundamental(a: &[[f64; 2]], b: &[[f64; 2]], idx: &[usize]) -> Option<[[f64; 3]; 3]> {
     if idx.len() < 8 {
         return None;
     }
-    let ta = normaliser(idx.iter().filter_map(|&i| a.get(i)))?;
-    let tb = normaliser(idx.iter().filter_map(|&i| b.get(i)))?;
-    let mut ata = SMatrix::<f64, 9, 9>::zeros();
-    for &i in idx {
-        let (p, q) = (apply(&ta, a.get(i)?), apply(&tb, b.get(i)?));
-        let (x, y, u, v) = (p[0], p[1], q[0], q[1]);
-        add_row(&mut ata, &[u * x, u * y, u, v * x, v * y, v, x, y, 1.0]);
-    }
-    let f = null_vector(ata)?;
+    let (ta, tb, f) = normalised_dlt(a, b, idx, |[x, y], [u, v], ata| {
+        add_row(ata, &[u * x, u * y, u, v * x, v * y, v, x, y, 1.0]);
+    })?;
     let fh = Matrix3::new(f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8]);
     let svd = fh.try_svd(true, true, f64::EPSILON, MAX_SOLVER_ITERS)?;
     let (u, vt) = (svd.u?, svd.v_t?);
@@ -227,16 +239,10 @@ pub fn fit_homography(a: &[[f64; 2]], b: &[[f64; 2]], idx: &[usize]) -> Option<[
     if idx.len() < 4 {
         return None;
     }
-    let ta = normaliser(idx.iter().filter_map(|&i| a.get(i)))?;
-    let tb = normaliser(idx.iter().filter_map(|&i| b.get(i)))?;
-    let mut ata = SMatrix::<f64, 9, 9>::zeros();
-    for &i in idx {
-        let (p, q) = (apply(&ta, a.get(i)?), apply(&tb, b.get(i)?));
-        let (x, y, u, v) = (p[0], p[1], q[0], q[1]);
-        add_row(&mut ata, &[0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v]);
-        add_row(&mut ata, &[x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y, -u]);
-    }
-    let h = null_vector(ata)?;
+    let (ta, tb, h) = normalised_dlt(a, b, idx, |[x, y], [u, v], ata| {
+        add_row(ata, &[0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, v]);
+        add_row(ata, &[x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y, -u]);
+    })?;
     let hh = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
     let h = tb.try_inverse()? * hh * ta;
     let s = if h[(2, 2)].abs() > 1e-12 * h.norm() {
