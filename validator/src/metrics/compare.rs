@@ -14,7 +14,7 @@
 use serde::Serialize;
 
 use super::matching::{
-    match_and_verify, match_descriptors, matching_score, MatchParams, MatchReport, MatchingScore,
+    match_descriptors, matching_score, verify_matches, MatchParams, MatchReport, MatchingScore,
 };
 use super::ransac::RansacParams;
 use super::region_overlap::{region_repeatability, Ellipse, RegionParams, RegionRepeatability};
@@ -98,14 +98,7 @@ fn matching(
     let matches = match_descriptors(&a.descriptors, &b.descriptors, &params);
     MatchingFigures {
         score: matching_score(&points(&a.kps), &points(&b.kps), &matches, Some, seen, eps),
-        ransac: match_and_verify(
-            &a.kps,
-            &a.descriptors,
-            &b.kps,
-            &b.descriptors,
-            &params,
-            &RansacParams::homography(),
-        ),
+        ransac: verify_matches(&a.kps, &b.kps, &matches, &RansacParams::homography()),
     }
 }
 

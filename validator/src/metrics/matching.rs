@@ -206,7 +206,17 @@ pub fn match_and_verify(
     matching: &MatchParams,
     geometry: &RansacParams,
 ) -> MatchReport {
-    let matches = match_descriptors(da, db, matching);
+    verify_matches(ka, kb, &match_descriptors(da, db, matching), geometry)
+}
+
+/// Verifies already computed `matches` between keypoints `ka` and `kb` with RANSAC (the second
+/// half of [`match_and_verify`], for callers that also need the matches themselves).
+pub fn verify_matches(
+    ka: &[Keypoint],
+    kb: &[Keypoint],
+    matches: &[Match],
+    geometry: &RansacParams,
+) -> MatchReport {
     let (pa, pb): (Vec<[f64; 2]>, Vec<[f64; 2]>) = matches
         .iter()
         .filter_map(|m| {
