@@ -463,6 +463,51 @@ fn output_is_identical_for_one_and_two_threads() {
     );
 }
 
+/// A scene keeps the camera-ray table of each camera it rendered: a view rendered again after
+/// other cameras and sampling rates (cache hits, a miss in between, an eviction) has the bytes
+/// of the same view in a fresh scene, and a second camera never reuses the first one's rays.
+#[test]
+fn cached_camera_rays_give_the_bytes_of_a_fresh_scene() {
+    let g = Geometry::Heightfield {
+        grid: grid(121, 121, 0.03, |x, y| {
+            0.15 * (x * 2.3).sin() * (y * 1.9).cos()
+        }),
+        albedo: albedo(121, 121, 0.03, |x, y| {
+            0.4 + 0.2 * (x * 9.0).sin() * (y * 7.0).cos()
+        }),
+    };
+    let l = light(60.0, 40.0, 0.3);
+    let a = real_camera();
+    let mut b = a.clone();
+    b.distortion.k1 *= 0.5;
+    let view = |cam: &CameraModel| View::look_at(cam.clone(), [1.8, -4.0, 1.0], [1.8, -1.8, 0.0]);
+    let opts = |n: u32| RenderOptions {
+        distort: true,
+        shadows: false,
+        supersample: n,
+    };
+    let bits = |r: &Rendered| -> Vec<u32> {
+        r.radiance
+            .iter()
+            .chain(&r.depth)
+            .map(|v| v.to_bits())
+            .collect()
+    };
+    let fresh = |cam: &CameraModel, n: u32| bits(&Scene::new(&g).render(&l, &view(cam), &opts(n)));
+    let scene = Scene::new(&g);
+    let first = bits(&scene.render(&l, &view(&a), &opts(1)));
+    assert_eq!(first, fresh(&a, 1));
+    let other = bits(&scene.render(&l, &view(&b), &opts(1)));
+    assert_ne!(other, first, "the second camera's distortion must show");
+    assert_eq!(other, fresh(&b, 1));
+    for n in 2..=4 {
+        assert_eq!(bits(&scene.render(&l, &view(&a), &opts(n))), fresh(&a, n));
+    }
+    // Five tables were asked for; the oldest (camera a, n = 1) was evicted and is rebuilt.
+    assert_eq!(bits(&scene.render(&l, &view(&a), &opts(1))), first);
+    assert_eq!(bits(&scene.render(&l, &view(&b), &opts(1))), other);
+}
+
 #[test]
 fn supersampling_box_filters_an_albedo_edge() {
     // Albedo 0 for x < 2, 1 for x >= 2 on 5 mm cells, seen from above with 0.02 m pixels;

@@ -4,7 +4,9 @@
 //! * **Ray casting, not rasterisation.** Every output pixel is unprojected through the
 //!   [`CameraModel`] (pixel `(0, 0)` = centre of the top-left pixel) and traced, so a raw
 //!   *distorted* image is rendered directly, without a remap, and the same tracer serves the
-//!   corpus' laser-scan simulation ([`HeightfieldTracer`]).
+//!   corpus' laser-scan simulation ([`HeightfieldTracer`]). Inverting the distortion is a Newton
+//!   iteration per ray, so a [`Scene`] keeps each camera's rays in a table (`raster::RayTable`)
+//!   and the next views of that camera (validate renders every camera at every capture) skip it.
 //! * **Heightfields** are traced through a min/max quadtree ("max-mip") over the cell quads,
 //!   see [`heightfield`]; every quad between four cell centres is split along its NW–SE diagonal
 //!   into two planar triangles, the same split as the compiler's glTF meshes. **Meshes** are
@@ -190,7 +192,13 @@ pub struct Rendered {
 /// many views of the same terrain.
 pub struct Scene<'a> {
     pub(crate) kind: SceneKind<'a>,
+    /// Camera-ray tables of the cameras rendered so far (most recent last), see
+    /// [`raster::RayTable`].
+    rays: std::sync::Mutex<Vec<std::sync::Arc<raster::RayTable>>>,
 }
+
+/// Ray tables kept per scene (one per camera and sampling rate; a stereo rig needs two).
+const RAY_TABLES: usize = 4;
 
 pub(crate) enum SceneKind<'a> {
     Heightfield {
@@ -214,7 +222,36 @@ impl<'a> Scene<'a> {
                 tracer: MeshTracer::new(m),
             },
         };
-        Scene { kind }
+        Scene {
+            kind,
+            rays: std::sync::Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The ray table of `camera` at `supersample`, built on first use and kept for the next
+    /// views of the same camera.
+    pub(crate) fn ray_table(
+        &self,
+        camera: &CameraModel,
+        supersample: u32,
+    ) -> std::sync::Arc<raster::RayTable> {
+        let n = supersample.max(1);
+        let hit = |t: &std::sync::Arc<raster::RayTable>| t.camera == *camera && t.supersample == n;
+        if let Ok(tables) = self.rays.lock() {
+            if let Some(t) = tables.iter().find(|t| hit(t)) {
+                return t.clone();
+            }
+        }
+        let table = std::sync::Arc::new(raster::RayTable::new(camera, n));
+        if let Ok(mut tables) = self.rays.lock() {
+            if !tables.iter().any(hit) {
+                if tables.len() == RAY_TABLES {
+                    tables.remove(0);
+                }
+                tables.push(table.clone());
+            }
+        }
+        table
     }
 
     /// Renders one view.
