@@ -84,7 +84,7 @@ pub enum Command {
         /// The release (default: latest).
         #[arg(long, default_value = "latest")]
         release: String,
-        /// Entries to validate (default: every heightfield entry); repeatable.
+        /// Entries to validate (default: every heightfield and mesh entry); repeatable.
         #[arg(long)]
         entry: Vec<String>,
         /// Detectors (harris, fast, sift, surf, mser; default: all); repeatable.

@@ -239,10 +239,14 @@ fn publishing_requires_passing_certificates() {
     assert!(String::from_utf8_lossy(&out.stdout).contains("laser/0.05: no certificate"));
     let database = regolith_reader::Database::open(&db).unwrap();
     let view = database.release("sample@1.0.0").unwrap();
-    let hash = view.entry("laser/0.05").unwrap().hash().unwrap().to_hex();
-    let certify = |body: serde_json::Value| {
+    // Every terrain entry needs one: the raster and the mesh built from it.
+    let terrain = regolith_validator::validate::certified_entries(&view);
+    assert_eq!(terrain, ["laser/0.05", "laser/0.05/mesh"]);
+    let certify = |entry: &str, passed: bool, failures: &[&str]| {
+        let hash = view.entry(entry).unwrap().hash().unwrap().to_hex();
+        let body = serde_json::json!({"entry_hash": hash, "passed": passed, "failures": failures});
         let w = Writer::create_or_open(&db).unwrap();
-        w.put_certificate(&view.id, "laser/0.05", &body).unwrap();
+        w.put_certificate(&view.id, entry, &body).unwrap();
     };
     // While another writer holds the database, a second one is refused, not blocked.
     {
@@ -251,13 +255,20 @@ fn publishing_requires_passing_certificates() {
         assert_eq!(out.status.code(), Some(2));
         assert!(String::from_utf8_lossy(&out.stderr).contains("another process"));
     }
-    // A failing certificate: refused, with its failure in the message.
+    // A failing certificate: refused, with its failure in the message; the raster passing
+    // does not cover its mesh.
     certify(
-        serde_json::json!({"entry_hash": hash, "passed": false, "failures": ["sift: ratio 0.10 < 0.35, short by 0.25"]}),
+        "laser/0.05",
+        false,
+        &["sift: ratio 0.10 < 0.35, short by 0.25"],
     );
     let out = regolith(&["release", &db, "sample@1.0.0", "--publish"]);
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stdout).contains("short by 0.25"));
+    certify("laser/0.05", true, &[]);
+    let out = regolith(&["release", &db, "sample@1.0.0", "--publish"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("laser/0.05/mesh: no certificate"));
     // --allow-uncertified: a child release records the exception in its manifest.
     let out = regolith(&[
         "release",
@@ -272,8 +283,8 @@ fn publishing_requires_passing_certificates() {
     let child = database.release(v["id"].as_str().unwrap()).unwrap();
     assert_eq!(child.manifest.allow_uncertified, Some(true));
     assert_eq!(child.manifest.parent, Some(view.id));
-    // A passing certificate for this entry: published as is.
-    certify(serde_json::json!({"entry_hash": hash, "passed": true, "failures": []}));
+    // Passing certificates for both: published as is.
+    certify("laser/0.05/mesh", true, &[]);
     assert_eq!(
         regolith(&["release", &db, "sample@1.0.0", "--publish"])
             .status

@@ -22,9 +22,25 @@ pub const MARKER: &str = "regolith.db";
 pub const LATEST: &str = "latest";
 /// Prefix of the immutable per-release refs (`releases/<name>@<version>`).
 pub const RELEASES_PREFIX: &str = "releases/";
-/// Prefix of certificate refs (`certificates/<release id>/<entry>`), which name a certificate
-/// object rather than a release (SPEC.md §2).
+/// Prefix of certificate refs (`certificates/<release id>/<escaped entry>`), which name a
+/// certificate object rather than a release (SPEC.md §2).
 pub const CERTIFICATES_PREFIX: &str = "certificates/";
+
+/// The ref of the certificate of `entry` in `release` (SPEC.md §2, format 1.3): the entry name
+/// escaped into a single path segment, `@` → `@a` then `/` → `@s`.
+///
+/// Why: entry names nest (`laser/0.01` and its mesh `laser/0.01/mesh`), and a ref is a file, so
+/// `certificates/<id>/laser/0.01` as a file would forbid the directory the mesh's ref needs.
+/// The escape is reversible, so distinct entries never share a ref.
+pub fn certificate_ref(release: &ObjectId, entry: &str) -> String {
+    let escaped = entry.replace('@', "@a").replace('/', "@s");
+    format!("{CERTIFICATES_PREFIX}{release}/{escaped}")
+}
+
+/// The certificate ref of formats 1.1–1.2 (`certificates/<release id>/<entry>`), still read.
+fn legacy_certificate_ref(release: &ObjectId, entry: &str) -> String {
+    format!("{CERTIFICATES_PREFIX}{release}/{entry}")
+}
 
 /// Whether a ref names a plain object (a certificate) rather than a release.
 pub fn is_object_ref(name: &str) -> bool {
@@ -157,7 +173,19 @@ impl Database {
         release: &ObjectId,
         entry: &str,
     ) -> Result<Option<serde_json::Value>> {
-        let Some(id) = self.read_ref(&format!("{CERTIFICATES_PREFIX}{release}/{entry}"))? else {
+        // A directory at either name holds refs of nested entries of the 1.1–1.2 layout.
+        let read = |name: &str| -> Result<Option<ObjectId>> {
+            if self.root.join("refs").join(name).is_dir() {
+                Ok(None)
+            } else {
+                self.read_ref(name)
+            }
+        };
+        let mut found = read(&certificate_ref(release, entry))?;
+        if found.is_none() {
+            found = read(&legacy_certificate_ref(release, entry))?;
+        }
+        let Some(id) = found else {
             return Ok(None);
         };
         let bytes = read_verified(&self.root, &id, None, &Site::new(entry, "certificate"))?;

@@ -26,9 +26,7 @@ use regolith_format::manifest::{check_name, MANIFEST_MEDIA_TYPE};
 use regolith_format::{canonical_json, FileRef, ObjectId, Release, SCHEMA};
 use serde::Serialize;
 
-use crate::database::{
-    is_object_ref, Database, CERTIFICATES_PREFIX, LATEST, MARKER, RELEASES_PREFIX,
-};
+use crate::database::{certificate_ref, is_object_ref, Database, LATEST, MARKER, RELEASES_PREFIX};
 use crate::error::{ReaderError, Result};
 use crate::object::object_path;
 
@@ -205,10 +203,7 @@ impl Writer {
         body: &T,
     ) -> Result<FileRef> {
         let f = self.put_json(body)?;
-        self.set_ref(
-            &format!("{CERTIFICATES_PREFIX}{release}/{entry}"),
-            &f.object,
-        )?;
+        self.set_ref(&certificate_ref(release, entry), &f.object)?;
         Ok(f)
     }
 

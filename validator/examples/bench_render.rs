@@ -10,7 +10,8 @@ use std::time::Instant;
 
 use regolith_format::camera_model::{CameraModel, Distortion};
 use regolith_validator::render::{
-    AlbedoGrid, Geometry, HeightGrid, Light, RenderOptions, Rendered, Scene, TriMeshF32, View,
+    AlbedoGrid, Geometry, HeightGrid, Light, MeshTexture, RenderOptions, Rendered, Scene,
+    TriMeshF32, View,
 };
 
 const EXTENT_M: f64 = 8.7;
@@ -87,6 +88,7 @@ fn as_mesh(g: &Geometry) -> Option<TriMeshF32> {
         positions,
         triangles,
         albedo: albedo.value.clone(),
+        texture: None,
     })
 }
 
@@ -204,7 +206,30 @@ fn main() -> std::io::Result<()> {
     let compiled = terrain(0.015);
     report("heightfield 0.015 m (580²)", &compiled, 5);
     if let Some(mesh) = as_mesh(&compiled).filter(|_| std::env::var_os("BENCH_QUICK").is_none()) {
+        // The same mesh textured as the compiler writes it: UVs on texel centres.
+        let (w, h) = match &compiled {
+            Geometry::Heightfield { grid, .. } => (grid.width, grid.height),
+            Geometry::Mesh(_) => (mesh.positions.len(), 1),
+        };
+        let textured = TriMeshF32 {
+            albedo: Vec::new(),
+            texture: Some(MeshTexture {
+                uvs: (0..w * h)
+                    .map(|i| {
+                        [
+                            ((i % w) as f32 + 0.5) / w as f32,
+                            ((i / w) as f32 + 0.5) / h as f32,
+                        ]
+                    })
+                    .collect(),
+                width: w,
+                height: h,
+                value: mesh.albedo.clone(),
+            }),
+            ..mesh.clone()
+        };
         report("mesh of the same (~670k tri)", &Geometry::Mesh(mesh), 3);
+        report("textured mesh of the same", &Geometry::Mesh(textured), 3);
     }
     if std::env::var_os("BENCH_QUICK").is_none() {
         report("heightfield 0.005 m (1740²)", &terrain(0.005), 3);

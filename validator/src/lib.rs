@@ -8,6 +8,7 @@
 
 pub mod features;
 pub mod gap;
+pub mod mesh_entry;
 pub mod metrics;
 pub mod render;
 pub mod report;

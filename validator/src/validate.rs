@@ -269,8 +269,35 @@ pub(crate) fn grey(png: &[u8], entry: &str) -> Result<GreyF32, ReaderError> {
     .ok_or_else(|| decode_err(entry, "empty image".into()))
 }
 
-/// The geometry of a heightfield entry with its texture (or a uniform grey) as albedo.
+/// The entry kinds `validate` renders and certifies, and the release gate requires
+/// certificates for: the terrain entries, heightfields and meshes.
+pub const CERTIFIED_KINDS: [&str; 2] = [kinds::HEIGHTFIELD, kinds::MESH];
+
+/// The names of the release's entries of a [`CERTIFIED_KINDS`] kind, in manifest order.
+pub fn certified_entries(view: &ReleaseView) -> Vec<String> {
+    view.entries()
+        .iter()
+        .filter(|e| CERTIFIED_KINDS.contains(&e.kind.as_str()))
+        .map(|e| e.name.clone())
+        .collect()
+}
+
+/// The render geometry of a terrain entry: a heightfield with its texture (or a uniform grey)
+/// as albedo, or a mesh entry's `lod0` GLB with its embedded texture
+/// ([`crate::mesh_entry::mesh_geometry`]); any other kind is [`ReaderError::WrongKind`].
 pub fn entry_geometry(view: &ReleaseView, entry: &str) -> Result<Geometry, ReaderError> {
+    match view.entry(entry)?.kind.as_str() {
+        kinds::HEIGHTFIELD => heightfield_geometry(view, entry),
+        kinds::MESH => crate::mesh_entry::mesh_geometry(view, entry),
+        other => Err(ReaderError::WrongKind {
+            entry: entry.to_string(),
+            expected: "heightfield or mesh",
+            found: other.to_string(),
+        }),
+    }
+}
+
+fn heightfield_geometry(view: &ReleaseView, entry: &str) -> Result<Geometry, ReaderError> {
     let hf = view.heightfield(entry)?;
     let m: &HeightfieldMeta = &hf.meta;
     let grid = HeightGrid {

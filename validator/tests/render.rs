@@ -390,6 +390,7 @@ fn as_mesh(g: &HeightGrid, a: f32) -> TriMeshF32 {
         positions,
         triangles,
         albedo: vec![a; w * h],
+        texture: None,
     }
 }
 

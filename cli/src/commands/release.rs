@@ -1,14 +1,15 @@
 //! `regolith release DB R --publish`: the release gate. A release is published (ref
-//! `published/<name>@<version>`) only when every terrain (heightfield) entry has a certificate
-//! for *this* release id whose entry hash matches and which passed. `--allow-uncertified`
-//! publishes anyway, through a child release whose manifest records `allow_uncertified: true`
-//! (version `<version>+uncertified`), so the exception is visible to every reader.
+//! `published/<name>@<version>`) only when every terrain entry (heightfield and mesh, see
+//! `CERTIFIED_KINDS`) has a certificate for *this* release id whose entry hash matches and which
+//! passed. `--allow-uncertified` publishes anyway, through a child release whose manifest records
+//! `allow_uncertified: true` (version `<version>+uncertified`), so the exception is visible to
+//! every reader.
 
 use std::path::Path;
 
 use anyhow::bail;
-use regolith_format::kinds;
 use regolith_reader::{Database, Writer};
+use regolith_validator::validate::CERTIFIED_KINDS;
 
 use super::print_json;
 use crate::Outcome;
@@ -29,14 +30,17 @@ pub fn run(
     for e in view
         .entries()
         .iter()
-        .filter(|e| e.kind == kinds::HEIGHTFIELD)
+        .filter(|e| CERTIFIED_KINDS.contains(&e.kind.as_str()))
     {
-        match database.certificate(&view.id, &e.name)? {
-            None => problems.push(format!(
+        // An unreadable certificate refuses the release (fail closed) and is listed with the
+        // others rather than hiding them.
+        match database.certificate(&view.id, &e.name) {
+            Err(err) => problems.push(format!("{}: cannot read its certificate: {err}", e.name)),
+            Ok(None) => problems.push(format!(
                 "{}: no certificate for this release (run `regolith validate`)",
                 e.name
             )),
-            Some(c) => {
+            Ok(Some(c)) => {
                 if c["entry_hash"].as_str() != Some(e.hash()?.to_hex().as_str()) {
                     problems.push(format!(
                         "{}: the certificate is for another version of the entry",

@@ -1,16 +1,17 @@
-//! `regolith validate DB`: certify terrain entries against the real captures (see
-//! `regolith_validator::validate`); certificates go into the database under
-//! `certificates/<release id>/<entry>`. With `--report DIR` the same run also draws an offline
-//! HTML report (`regolith_validator::report`).
+//! `regolith validate DB`: certify terrain entries (heightfields and meshes, by default all of
+//! them) against the real captures (see `regolith_validator::validate`); certificates go into
+//! the database under `certificates/<release id>/<escaped entry>` (SPEC §2). With `--report DIR` the same run
+//! also draws an offline HTML report (`regolith_validator::report`).
 
 use std::path::Path;
 
 use anyhow::Context;
-use regolith_format::kinds;
 use regolith_reader::{Database, Writer};
 use regolith_validator::features::Detector;
 use regolith_validator::report::ValidationReport;
-use regolith_validator::validate::{validate_entry, Thresholds, ValidateOptions};
+use regolith_validator::validate::{
+    certified_entries, validate_entry, Thresholds, ValidateOptions,
+};
 
 use super::print_json;
 use crate::Outcome;
@@ -40,17 +41,13 @@ pub fn run(
             .with_context(|| format!("thresholds file {}", path.display()))?;
     }
     let names: Vec<String> = if entries.is_empty() {
-        view.entries()
-            .iter()
-            .filter(|e| e.kind == kinds::HEIGHTFIELD)
-            .map(|e| e.name.clone())
-            .collect()
+        certified_entries(&view)
     } else {
         entries.to_vec()
     };
     anyhow::ensure!(
         !names.is_empty(),
-        "release {} has no heightfield entry to validate",
+        "release {} has no heightfield or mesh entry to validate",
         view.label()
     );
     let writer = Writer::create_or_open(db)?;

@@ -10,11 +10,15 @@
 //!   `f64` and intersected with Möller–Trumbore.
 //! * Shading uses **per-face normals** (flat shading): SfM meshes often have inconsistent
 //!   vertex normals and winding, so the normal is recomputed from the face and turned toward
-//!   the incoming ray. Albedo is interpolated barycentrically from the vertices.
+//!   the incoming ray. Albedo is interpolated barycentrically from the vertices, or, for a
+//!   triangle with texture coordinates, sampled from the texture ([`sample_texture`]) at the
+//!   barycentrically interpolated coordinates. A ray caster interpolates at the true 3-D hit,
+//!   so this is the perspective-correct coordinate (a rasteriser needs the `1/w` division for
+//!   the same result).
 //! * Invalid input is skipped, not fatal: triangles with an out-of-range index, a non-finite
 //!   vertex or zero area are left out of the tree.
 
-use super::{Hit, TriMeshF32};
+use super::{Hit, MeshTexture, TriMeshF32};
 
 /// Maximum number of triangles in a leaf.
 const LEAF: usize = 4;
@@ -26,7 +30,17 @@ struct Tri {
     e1: [f64; 3],
     e2: [f64; 3],
     albedo: [f32; 3],
+    /// Texture coordinates of the three vertices, when the mesh has a texture and all three
+    /// are finite.
+    uv: Option<[[f64; 2]; 3]>,
     normal: [f64; 3],
+}
+
+/// The texture image a tracer samples (the coordinates live in the triangles).
+struct Image {
+    width: usize,
+    height: usize,
+    value: Vec<f32>,
 }
 
 struct Node {
@@ -44,6 +58,7 @@ pub struct MeshTracer {
     tris: Vec<Tri>,
     nodes: Vec<Node>,
     extent: f64,
+    texture: Option<Image>,
 }
 
 impl MeshTracer {
@@ -55,6 +70,11 @@ impl MeshTracer {
             p.iter().all(|c| c.is_finite()).then_some(p)
         };
         let albedo = |i: u32| mesh.albedo.get(i as usize).copied().unwrap_or(0.0);
+        let uv = |i: u32| -> Option<[f64; 2]> {
+            let t = mesh.texture.as_ref()?.uvs.get(i as usize)?;
+            let t = [f64::from(t[0]), f64::from(t[1])];
+            t.iter().all(|c| c.is_finite()).then_some(t)
+        };
         let mut tris: Vec<Tri> = Vec::new();
         for t in &mesh.triangles {
             let (Some(a), Some(b), Some(c)) = (vert(t[0]), vert(t[1]), vert(t[2])) else {
@@ -72,6 +92,10 @@ impl MeshTracer {
                 e1,
                 e2,
                 albedo: [albedo(t[0]), albedo(t[1]), albedo(t[2])],
+                uv: match (uv(t[0]), uv(t[1]), uv(t[2])) {
+                    (Some(p), Some(q), Some(r)) => Some([p, q, r]),
+                    _ => None,
+                },
                 normal,
             });
         }
@@ -80,6 +104,11 @@ impl MeshTracer {
             tris: Vec::new(),
             nodes: Vec::new(),
             extent: 1.0,
+            texture: mesh.texture.as_ref().map(|t| Image {
+                width: t.width,
+                height: t.height,
+                value: t.value.clone(),
+            }),
         };
         tracer.build(tris);
         tracer
@@ -191,7 +220,8 @@ impl MeshTracer {
             .is_some()
     }
 
-    /// The nearest intersection and the interpolated albedo there.
+    /// The nearest intersection and the albedo there: the texture sample at the interpolated
+    /// texture coordinates for a textured triangle, else the interpolated vertex albedo.
     pub(crate) fn trace_albedo(
         &self,
         origin: [f64; 3],
@@ -210,8 +240,20 @@ impl MeshTracer {
         } else {
             tri.normal
         };
-        let a = tri.albedo;
-        let albedo = (1.0 - bu - bv) as f32 * a[0] + bu as f32 * a[1] + bv as f32 * a[2];
+        let albedo = match (tri.uv, &self.texture) {
+            (Some(uv), Some(img)) => {
+                let w0 = 1.0 - bu - bv;
+                let (u, v) = (
+                    w0 * uv[0][0] + bu * uv[1][0] + bv * uv[2][0],
+                    w0 * uv[0][1] + bu * uv[1][1] + bv * uv[2][1],
+                );
+                sample_image(img.width, img.height, &img.value, u, v)
+            }
+            _ => {
+                let a = tri.albedo;
+                (1.0 - bu - bv) as f32 * a[0] + bu as f32 * a[1] + bv as f32 * a[2]
+            }
+        };
         Some((
             Hit {
                 t,
@@ -299,6 +341,26 @@ impl MeshTracer {
         }
         best
     }
+}
+
+/// The texture's albedo at texture coordinates `(u, v)` with the sampler of [`MeshTexture`]:
+/// `(0, 0)` is the image's top-left corner, texel centres at `((i + 0.5) / width, (j + 0.5) /
+/// height)`, bilinear between texel centres and clamped to the edge texels. The arithmetic is
+/// that of [`super::shading::sample_albedo`], so a mesh whose vertex coordinates sit on texel
+/// centres samples what the heightfield render of the same texture samples. An empty texture
+/// gives 0, non-finite coordinates or values count as 0.
+pub fn sample_texture(texture: &MeshTexture, u: f64, v: f64) -> f32 {
+    sample_image(texture.width, texture.height, &texture.value, u, v)
+}
+
+fn sample_image(width: usize, height: usize, value: &[f32], u: f64, v: f64) -> f32 {
+    super::shading::bilinear(
+        width,
+        height,
+        value,
+        u * width as f64 - 0.5,
+        v * height as f64 - 0.5,
+    )
 }
 
 /// Möller–Trumbore; returns `(t, u, v)` with `0 <= t <= t_max`.

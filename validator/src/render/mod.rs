@@ -64,7 +64,7 @@ pub struct AlbedoGrid {
     pub value: Vec<f32>,
 }
 
-/// A triangle mesh in the ground frame (z up) with per-vertex albedo.
+/// A triangle mesh in the ground frame (z up) with per-vertex albedo and an optional texture.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TriMeshF32 {
     /// Ground position that `positions` are relative to.
@@ -73,8 +73,32 @@ pub struct TriMeshF32 {
     pub positions: Vec<[f32; 3]>,
     /// Vertex indices of each triangle.
     pub triangles: Vec<[u32; 3]>,
-    /// Albedo per vertex, 0..1 (missing values count as 0).
+    /// Albedo per vertex, 0..1 (missing values count as 0); used by the triangles the texture
+    /// does not cover (SfM vertex colours).
     pub albedo: Vec<f32>,
+    /// Texture: a triangle whose three vertices have finite texture coordinates takes its albedo
+    /// from the texture instead of `albedo`.
+    pub texture: Option<MeshTexture>,
+}
+
+/// The albedo texture of a [`TriMeshF32`] (a glTF base-colour texture reduced to one channel).
+///
+/// Sampler (SPEC §5.3): glTF texture coordinates, `(0, 0)` = the top-left corner of the image,
+/// `v` down; texel `(i, j)` has its centre at `((i + 0.5) / width, (j + 0.5) / height)`;
+/// bilinear between texel centres, clamped to the edge texels (`CLAMP_TO_EDGE`). The value at
+/// a hit is that sample at the barycentrically interpolated coordinates, which for a ray caster
+/// is the perspective-correct texture coordinate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshTexture {
+    /// Texture coordinates `(u, v)` per vertex (same indexing as `positions`); a missing or
+    /// non-finite one leaves its triangles to the per-vertex albedo.
+    pub uvs: Vec<[f32; 2]>,
+    /// Image width in texels.
+    pub width: usize,
+    /// Image height in texels.
+    pub height: usize,
+    /// Albedo 0..1, row-major, row 0 at `v = 0` (non-finite values count as 0).
+    pub value: Vec<f32>,
 }
 
 /// What to render.
@@ -87,7 +111,7 @@ pub enum Geometry {
         /// Albedo.
         albedo: AlbedoGrid,
     },
-    /// A triangle mesh with per-vertex albedo.
+    /// A triangle mesh with per-vertex albedo or a texture.
     Mesh(TriMeshF32),
 }
 

@@ -26,20 +26,33 @@ pub fn shade(albedo: f64, ambient: f64, normal: [f64; 3], to_light: [f64; 3], vi
 /// Bilinear albedo at ground `(x, y)`; positions outside the grid take the nearest edge value,
 /// an empty grid gives 0 and non-finite values count as 0.
 pub fn sample_albedo(grid: &AlbedoGrid, x: f64, y: f64) -> f32 {
-    if grid.width == 0 || grid.height == 0 || grid.cell_m <= 0.0 {
+    if grid.cell_m <= 0.0 {
         return 0.0;
     }
-    let u = ((x - grid.origin_m[0]) / grid.cell_m).clamp(0.0, (grid.width - 1) as f64);
-    let v = ((grid.origin_m[1] - y) / grid.cell_m).clamp(0.0, (grid.height - 1) as f64);
+    let u = (x - grid.origin_m[0]) / grid.cell_m;
+    let v = (grid.origin_m[1] - y) / grid.cell_m;
+    bilinear(grid.width, grid.height, &grid.value, u, v)
+}
+
+/// Bilinear value of a row-major `width x height` raster at `(u, v)` in units of cells, cell
+/// `(c, r)` centred at `(c, r)`; positions outside take the nearest edge value, an empty raster
+/// or non-finite coordinates give 0 and non-finite values count as 0. The one lookup of the
+/// renderer: heightfield albedo grids and mesh textures sample through it.
+pub(crate) fn bilinear(width: usize, height: usize, value: &[f32], u: f64, v: f64) -> f32 {
+    if width == 0 || height == 0 {
+        return 0.0;
+    }
+    let u = u.clamp(0.0, (width - 1) as f64);
+    let v = v.clamp(0.0, (height - 1) as f64);
     if !(u.is_finite() && v.is_finite()) {
         return 0.0;
     }
     let (c0, r0) = (u.floor() as usize, v.floor() as usize);
-    let (c1, r1) = ((c0 + 1).min(grid.width - 1), (r0 + 1).min(grid.height - 1));
+    let (c1, r1) = ((c0 + 1).min(width - 1), (r0 + 1).min(height - 1));
     let (fu, fv) = ((u - c0 as f64) as f32, (v - r0 as f64) as f32);
     let at = |c: usize, r: usize| {
-        grid.value
-            .get(r * grid.width + c)
+        value
+            .get(r * width + c)
             .copied()
             .filter(|a| a.is_finite())
             .unwrap_or(0.0)
