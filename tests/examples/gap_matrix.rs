@@ -3,7 +3,8 @@
 //! hidden; each is compiled and `gap` runs on its finest laser entry. Prints one line per case
 //! (hidden → named, fitted vs true parameters, gap before → after) and the matrix.
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR]`
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES]`
+//! (`CASES`: comma-separated case labels, e.g. `none,distortion`; default all).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::BTreeMap;
@@ -80,6 +81,10 @@ fn main() {
         ["pose-bias", "vignetting"],
     ] {
         cases.push((pair.join("+"), pair.to_vec()));
+    }
+    if let Some(only) = args.get(2) {
+        let only: Vec<&str> = only.split(',').collect();
+        cases.retain(|(label, _)| only.contains(&label.as_str()));
     }
     // matrix[hidden][named] = count
     let mut matrix: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();

@@ -82,6 +82,7 @@ fn truth_check(view: &regolith_reader::ReleaseView, entry: &str, campaign: &str)
     let t_cell = truth_meta["cell_m"].as_f64().unwrap();
     let m = &hf.meta;
     let (mut ratio, mut sq, mut n) = (Vec::new(), 0.0, 0usize);
+    let mut pairs: Vec<(f64, f64)> = Vec::new();
     for row in 0..m.height as usize {
         for col in 0..m.width as usize {
             let i = row * m.width as usize + col;
@@ -100,6 +101,7 @@ fn truth_check(view: &regolith_reader::ReleaseView, entry: &str, campaign: &str)
                 / 65535.0;
             let e = f64::from(tex.samples[i]) / scale;
             ratio.push(e / t.max(1e-3));
+            pairs.push((t, e));
             sq += (e - t) * (e - t);
             n += 1;
         }
@@ -108,6 +110,19 @@ fn truth_check(view: &regolith_reader::ReleaseView, entry: &str, campaign: &str)
         "{entry} texture vs truth albedo over {n} measured cells: median ratio {:.3}, RMS difference {:.4}",
         median(ratio),
         (sq / n.max(1) as f64).sqrt()
+    );
+    // The truth is exact, so the least-squares line of texture on truth is unbiased.
+    let k = pairs.len().max(1) as f64;
+    let (mt, me) = (
+        pairs.iter().map(|p| p.0).sum::<f64>() / k,
+        pairs.iter().map(|p| p.1).sum::<f64>() / k,
+    );
+    let cov = pairs.iter().map(|p| (p.0 - mt) * (p.1 - me)).sum::<f64>();
+    let var = pairs.iter().map(|p| (p.0 - mt).powi(2)).sum::<f64>();
+    let slope = cov / var.max(1e-12);
+    println!(
+        "{entry} texture = {slope:.3} · truth {:+.4} (truth mean {mt:.4}, texture mean {me:.4})",
+        me - slope * mt
     );
 }
 
