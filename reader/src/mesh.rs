@@ -39,12 +39,13 @@ pub struct Lod {
 }
 
 fn le_u32(b: &[u8], at: usize) -> Option<u32> {
-    let s = b.get(at..at + 4)?;
+    let s = b.get(at..at.checked_add(4)?)?;
     Some(u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
 }
 
-/// Parses the GLB container and summarises its glTF JSON.
-pub fn summarise_glb(b: &[u8]) -> std::result::Result<GlbSummary, String> {
+/// The JSON and the BIN chunk (empty when there is none) of a GLB container (glTF 2.0 §4.4),
+/// every offset bounds-checked; unknown chunk types are skipped.
+pub fn glb_container(b: &[u8]) -> std::result::Result<(Value, &[u8]), String> {
     if b.get(0..4) != Some(b"glTF") {
         return Err("missing glTF magic at byte 0".into());
     }
@@ -55,14 +56,38 @@ pub fn summarise_glb(b: &[u8]) -> std::result::Result<GlbSummary, String> {
     if total != b.len() {
         return Err(format!("header says {total} bytes, file has {}", b.len()));
     }
-    let json_len = le_u32(b, 12).ok_or("truncated chunk header at byte 12")? as usize;
-    if le_u32(b, 16) != Some(0x4E4F_534A) {
-        return Err("first chunk at byte 16 must be JSON".into());
+    let mut at = 12usize;
+    let mut json = None;
+    let mut bin: Option<&[u8]> = None;
+    while at < b.len() {
+        let len = le_u32(b, at).ok_or(format!("truncated chunk header at byte {at}"))? as usize;
+        let kind = le_u32(b, at + 4).ok_or(format!("truncated chunk header at byte {at}"))?;
+        let data = at
+            .checked_add(8)
+            .and_then(|s| Some((s, s.checked_add(len)?)))
+            .and_then(|(s, e)| b.get(s..e))
+            .ok_or(format!(
+                "chunk at byte {at} ({len} bytes) runs past the end"
+            ))?;
+        match (kind, json.is_some()) {
+            (0x4E4F_534A, false) => {
+                json = Some(
+                    serde_json::from_slice::<Value>(data)
+                        .map_err(|e| format!("JSON chunk: {e}"))?,
+                );
+            }
+            (_, false) => return Err("first chunk at byte 12 must be JSON".into()),
+            (0x004E_4942, true) if bin.is_none() => bin = Some(data),
+            _ => {} // unknown chunk types are skipped (glTF 2.0 §4.4.3.3)
+        }
+        at = at + 8 + len;
     }
-    let json = b
-        .get(20..20 + json_len)
-        .ok_or("JSON chunk runs past the end")?;
-    let v: Value = serde_json::from_slice(json).map_err(|e| format!("JSON chunk: {e}"))?;
+    Ok((json.ok_or("no JSON chunk")?, bin.unwrap_or(&[])))
+}
+
+/// Parses the GLB container and summarises its glTF JSON.
+pub fn summarise_glb(b: &[u8]) -> std::result::Result<GlbSummary, String> {
+    let (v, _) = glb_container(b)?;
     let accessors = v
         .get("accessors")
         .and_then(Value::as_array)

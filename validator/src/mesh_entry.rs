@@ -28,6 +28,7 @@
 //!   bilinear with `CLAMP_TO_EDGE` (SPEC §5.3), see [`crate::render::MeshTexture`].
 
 use regolith_format::kinds::{self, roles};
+use regolith_reader::mesh::glb_container;
 use regolith_reader::{ReaderError, ReleaseView};
 use serde_json::Value;
 
@@ -55,52 +56,6 @@ pub fn decode_glb(bytes: &[u8], entry: &str) -> Result<TriMeshF32, ReaderError> 
 }
 
 type R<T> = Result<T, String>;
-
-fn le_u32(b: &[u8], at: usize) -> Option<u32> {
-    let s = b.get(at..at.checked_add(4)?)?;
-    Some(u32::from_le_bytes([s[0], s[1], s[2], s[3]]))
-}
-
-/// The JSON and (optional) BIN chunk of a GLB container.
-fn container(b: &[u8]) -> R<(Value, &[u8])> {
-    if b.get(0..4) != Some(b"glTF") {
-        return Err("missing glTF magic at byte 0".into());
-    }
-    if le_u32(b, 4) != Some(2) {
-        return Err("expected glTF container version 2 at byte 4".into());
-    }
-    let total = le_u32(b, 8).ok_or("truncated header")? as usize;
-    if total != b.len() {
-        return Err(format!("header says {total} bytes, file has {}", b.len()));
-    }
-    let mut at = 12usize;
-    let mut json = None;
-    let mut bin: Option<&[u8]> = None;
-    while at < b.len() {
-        let len = le_u32(b, at).ok_or(format!("truncated chunk header at byte {at}"))? as usize;
-        let kind = le_u32(b, at + 4).ok_or(format!("truncated chunk header at byte {at}"))?;
-        let data = at
-            .checked_add(8)
-            .and_then(|s| Some((s, s.checked_add(len)?)))
-            .and_then(|(s, e)| b.get(s..e))
-            .ok_or(format!(
-                "chunk at byte {at} ({len} bytes) runs past the end"
-            ))?;
-        match (kind, json.is_some()) {
-            (0x4E4F_534A, false) => {
-                json = Some(
-                    serde_json::from_slice::<Value>(data)
-                        .map_err(|e| format!("JSON chunk: {e}"))?,
-                );
-            }
-            (_, false) => return Err("first chunk at byte 12 must be JSON".into()),
-            (0x004E_4942, true) if bin.is_none() => bin = Some(data),
-            _ => {} // unknown chunk types are skipped (glTF 2.0 §4.4.3.3)
-        }
-        at = at + 8 + len;
-    }
-    Ok((json.ok_or("no JSON chunk")?, bin.unwrap_or(&[])))
-}
 
 fn array<'a>(v: &'a Value, key: &str) -> &'a [Value] {
     v.get(key)
@@ -323,24 +278,11 @@ impl Affine {
         if q == 0.0 {
             return Err(format!("{what}: zero rotation quaternion"));
         }
-        let (x, y, z, w) = (x / q, y / q, z / q, w / q);
-        let rot = [
-            [
-                1.0 - 2.0 * (y * y + z * z),
-                2.0 * (x * y - z * w),
-                2.0 * (x * z + y * w),
-            ],
-            [
-                2.0 * (x * y + z * w),
-                1.0 - 2.0 * (x * x + z * z),
-                2.0 * (y * z - x * w),
-            ],
-            [
-                2.0 * (x * z - y * w),
-                2.0 * (y * z + x * w),
-                1.0 - 2.0 * (x * x + y * y),
-            ],
-        ];
+        let rot = regolith_format::frames::Pose {
+            translation_m: [0.0; 3],
+            rotation_xyzw: [x / q, y / q, z / q, w / q],
+        }
+        .rotation_matrix();
         Ok(Affine {
             m: std::array::from_fn(|r| std::array::from_fn(|c| rot[r][c] * s[c])),
             t,
@@ -571,7 +513,7 @@ fn scene_roots(json: &Value, s: usize) -> R<Vec<usize>> {
 }
 
 fn decode(bytes: &[u8]) -> R<TriMeshF32> {
-    let (json, bin) = container(bytes)?;
+    let (json, bin) = glb_container(bytes)?;
     let required: Vec<&str> = array(&json, "extensionsRequired")
         .iter()
         .filter_map(Value::as_str)
