@@ -186,6 +186,31 @@ fn hidden_distortion_is_named_alone() {
     assert!(v["gap_after"].as_f64().unwrap() < v["gap_before"].as_f64().unwrap());
 }
 
+/// A pair: a strong response curve with a weaker vignetting. The curve alone removes most of
+/// the error; the vignetting must still be named (its share is judged against the error left
+/// without it, not against the error before anything was fitted).
+#[test]
+fn hidden_gamma_and_vignetting_are_both_named() {
+    let v = gap(&[
+        "--hidden-effect",
+        "gamma,vignetting",
+        "--effect-param",
+        "gamma.gamma=1.6",
+        "--effect-param",
+        "vignetting.strength=0.2",
+    ]);
+    let mut both = named(&v);
+    both.sort();
+    assert_eq!(both, ["gamma", "vignetting"], "in either order");
+    let (g, s) = (
+        param(&v, "gamma", "gamma"),
+        param(&v, "vignetting", "strength"),
+    );
+    eprintln!("gamma {g:.4} vignetting {s:.4}");
+    assert!((g - 1.6).abs() < 0.05, "gamma {g}");
+    assert!((s - 0.2).abs() < 0.05, "strength {s}");
+}
+
 #[test]
 fn hidden_gamma_is_named_alone() {
     let v = gap(&[
