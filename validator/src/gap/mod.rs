@@ -22,8 +22,9 @@
 //!
 //! Known limits: `texture-lowpass` (a texture too smooth for the real
 //! albedo) is in the catalogue but not attributed yet — the spectrum log-ratio is reported so
-//! it can be seen; and the smallest photometric change named is about 5 DN RMS, because
-//! renders of laser DEMs are themselves a little darker and flatter than the real images.
+//! it can be seen; and the smallest level or contrast change named (exposure, gamma) is about
+//! 5 DN RMS, because renders of laser DEMs are themselves a little darker and flatter than the
+//! real images (a radial falloff cannot mimic that, so vignetting is named from 3 DN²).
 
 pub mod apply;
 pub mod blur;
