@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::regolith;
+use common::{certificate, regolith};
 use serde_json::Value;
 
 fn validate(db: &str, entry: &str) -> Value {
@@ -25,13 +25,6 @@ fn validate(db: &str, entry: &str) -> Value {
         Some(if v["passed"] == true { 0 } else { 1 })
     );
     v["entries"][0].clone()
-}
-
-/// The certificate object a `validate --json` entry points at.
-fn certificate(db: &str, entry: &Value) -> Value {
-    let h = entry["certificate"].as_str().unwrap();
-    let path = std::path::Path::new(db).join(format!("objects/sha256/{}/{}", &h[..2], &h[2..]));
-    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
 #[test]

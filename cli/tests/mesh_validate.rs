@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::regolith;
+use common::{certificate, regolith};
 use regolith_reader::captures::ImageKind;
 use regolith_reader::Database;
 use regolith_validator::gap::{self, GapOptions};
@@ -43,12 +43,6 @@ fn shape(v: &Value, path: &str, out: &mut Vec<String>) {
         }
         _ => {}
     }
-}
-
-fn certificate(db: &str, entry: &Value) -> Value {
-    let h = entry["certificate"].as_str().unwrap();
-    let path = std::path::Path::new(db).join(format!("objects/sha256/{}/{}", &h[..2], &h[2..]));
-    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
 #[test]

@@ -10,3 +10,10 @@ pub fn regolith(args: &[&str]) -> Output {
         .output()
         .unwrap()
 }
+
+/// The certificate object a `validate --json` entry points at, read from the database folder.
+pub fn certificate(db: &str, entry: &serde_json::Value) -> serde_json::Value {
+    let h = entry["certificate"].as_str().unwrap();
+    let path = std::path::Path::new(db).join(format!("objects/sha256/{}/{}", &h[..2], &h[2..]));
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
