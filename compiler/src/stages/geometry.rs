@@ -7,6 +7,16 @@
 //!   share one audited implementation; `with_scale = false` gives the rigid fit.
 //! - Neighbourhoods use kiddo's `ImmutableKdTree` (balanced, no panic on coincident points,
 //!   unlike the mutable tree whose buckets overflow when many points share one coordinate).
+//! - [`KnnIndex`] is the exact kNN of `merge.clean`'s full-resolution passes (19 M points): a
+//!   balanced kd-tree (median split on the axis of largest extent, leaves of at most 16 points,
+//!   built level by level in parallel) whose coordinates are stored in leaf order, queried in
+//!   leaf order (consecutive queries touch the same memory) into a caller-owned sorted buffer
+//!   (no allocation per query), with an optional keep mask so one index serves a cloud and its
+//!   cleaned subset. Results are ordered by (squared distance, index), computed as
+//!   `(dx² + dy²) + dz²` like kiddo's, so distances match kiddo's bit for bit; only the order of
+//!   exact ties may differ from kiddo's (which follows its traversal). Pruning compares the
+//!   squared box distance, rounded in the same order, with `≤`, so no tie is lost. On the
+//!   full-resolution estec campaign it answers k = 9 and k = 16 in about a fifth of kiddo's time.
 //! - Every reduction is sequential over a `Vec` collected from an indexed parallel map, so sums do
 //!   not depend on the rayon thread count (house style practice 11).
 
@@ -14,6 +24,7 @@ use std::num::NonZero;
 
 use kiddo::SquaredEuclidean;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use rayon::prelude::*;
 
 use crate::ingest::types::Matrix4;
 
@@ -214,6 +225,240 @@ pub fn local_plane(
     fit_plane(&nb).map(|p| (p, nearest))
 }
 
+/// Most points in one leaf of a [`KnnIndex`].
+const LEAF_MAX: usize = 16;
+
+/// One neighbour found by [`KnnIndex::knn`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Neighbour {
+    /// Squared distance to the query, `((dx² + dy²) + dz²)` with `d = point − query`.
+    pub d2: f64,
+    /// Index of the point in the slice the index was built from.
+    pub id: u32,
+    /// Position of the point in the index's leaf order ([`KnnIndex::points`]).
+    pub pos: u32,
+}
+
+impl Neighbour {
+    /// The order of the results: distance, then lowest index.
+    fn before(&self, other: &Neighbour) -> bool {
+        self.d2 < other.d2 || (self.d2 == other.d2 && self.id < other.id)
+    }
+}
+
+/// Exact k-nearest-neighbour index over a point slice: a balanced kd-tree whose points are
+/// stored in leaf order (see the module doc). Results are ordered by (squared distance, index),
+/// so they are a function of the point set alone, not of the tree's shape or the thread count.
+#[derive(Debug, Clone)]
+pub struct KnnIndex {
+    /// Coordinates in leaf order.
+    pts: Vec<[f64; 3]>,
+    /// Index into the build slice of each leaf-order point.
+    ids: Vec<u32>,
+    /// Split value per internal node (heap numbering from 1).
+    split_val: Vec<f64>,
+    /// Split dimension per internal node.
+    split_dim: Vec<u8>,
+    /// Levels of internal nodes (0: the root is a leaf).
+    depth: u32,
+}
+
+impl KnnIndex {
+    /// Builds the index (`None` when `points` is empty, has more than `u32::MAX` points or a
+    /// non-finite coordinate).
+    pub fn new(points: &[[f64; 3]]) -> Option<KnnIndex> {
+        let n = points.len();
+        if n == 0 || u32::try_from(n).is_err() || !all_finite(points) {
+            return None;
+        }
+        let mut depth = 0u32;
+        while n.div_ceil(1usize << depth) > LEAF_MAX {
+            depth += 1;
+        }
+        let mut items: Vec<([f64; 3], u32)> = points.iter().copied().zip(0u32..).collect();
+        let mut split_val = vec![0.0; 1usize << depth];
+        let mut split_dim = vec![0u8; 1usize << depth];
+        // Level by level: the ranges of one level are disjoint, so they split in parallel.
+        let mut ranges = vec![(0usize, n)];
+        for level in 0..depth {
+            let mut slices: Vec<&mut [([f64; 3], u32)]> = Vec::with_capacity(ranges.len());
+            let mut rest: &mut [([f64; 3], u32)] = &mut items;
+            for &(lo, hi) in &ranges {
+                let (head, tail) = rest.split_at_mut(hi - lo);
+                slices.push(head);
+                rest = tail;
+            }
+            let splits: Vec<(u8, f64)> = slices.into_par_iter().map(split_node).collect();
+            let first = 1usize << level;
+            for (node, (d, v)) in (first..).zip(splits) {
+                if let (Some(sd), Some(sv)) = (split_dim.get_mut(node), split_val.get_mut(node)) {
+                    *sd = d;
+                    *sv = v;
+                }
+            }
+            ranges = ranges
+                .iter()
+                .flat_map(|&(lo, hi)| {
+                    let mid = lo + (hi - lo) / 2;
+                    [(lo, mid), (mid, hi)]
+                })
+                .collect();
+        }
+        let (pts, ids) = items.into_iter().unzip();
+        Some(KnnIndex {
+            pts,
+            ids,
+            split_val,
+            split_dim,
+            depth,
+        })
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.pts.len()
+    }
+
+    /// `true` when the index holds no point (never, for a built index).
+    pub fn is_empty(&self) -> bool {
+        self.pts.is_empty()
+    }
+
+    /// Coordinates in leaf order (queries in this order touch memory in order).
+    pub fn points(&self) -> &[[f64; 3]] {
+        &self.pts
+    }
+
+    /// Index into the build slice of each leaf-order point.
+    pub fn ids(&self) -> &[u32] {
+        &self.ids
+    }
+
+    /// `values` given in leaf order, returned in the order of the build slice.
+    pub fn to_build_order<T: Copy + Default>(&self, values: &[T]) -> Vec<T> {
+        let mut out = vec![T::default(); values.len()];
+        for (&id, &v) in self.ids.iter().zip(values) {
+            if let Some(o) = out.get_mut(id as usize) {
+                *o = v;
+            }
+        }
+        out
+    }
+
+    /// The `k` nearest points to `query` among those whose leaf-order position `keep` marks
+    /// (all when `None`) into `out` (cleared first), nearest first, ties by lowest index. Exact:
+    /// the same as sorting every candidate by (squared distance, index) and taking `k`.
+    pub fn knn(&self, query: &[f64; 3], k: usize, keep: Option<&[bool]>, out: &mut Vec<Neighbour>) {
+        out.clear();
+        if k == 0 {
+            return;
+        }
+        let mut off = [0.0; 3];
+        self.search(query, k, keep, 1, 0, 0, self.pts.len(), &mut off, out);
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn search(
+        &self,
+        q: &[f64; 3],
+        k: usize,
+        keep: Option<&[bool]>,
+        node: usize,
+        level: u32,
+        lo: usize,
+        hi: usize,
+        off: &mut [f64; 3],
+        out: &mut Vec<Neighbour>,
+    ) {
+        if level >= self.depth {
+            let (Some(pts), Some(ids)) = (self.pts.get(lo..hi), self.ids.get(lo..hi)) else {
+                return;
+            };
+            for ((pos, p), &id) in (lo..).zip(pts).zip(ids) {
+                if keep.is_some_and(|m| m.get(pos) != Some(&true)) {
+                    continue;
+                }
+                let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+                let d2 = dx * dx + dy * dy + dz * dz;
+                offer(
+                    out,
+                    k,
+                    Neighbour {
+                        d2,
+                        id,
+                        pos: pos as u32,
+                    },
+                );
+            }
+            return;
+        }
+        let (Some(&dim), Some(&s)) = (self.split_dim.get(node), self.split_val.get(node)) else {
+            return;
+        };
+        let dim = usize::from(dim).min(2);
+        let mid = lo + (hi - lo) / 2;
+        let qd = q[dim];
+        let left = (2 * node, lo, mid);
+        let right = (2 * node + 1, mid, hi);
+        let (near, far, gap) = if qd < s {
+            (left, right, s - qd)
+        } else {
+            (right, left, qd - s)
+        };
+        self.search(q, k, keep, near.0, level + 1, near.1, near.2, off, out);
+        let old = off[dim];
+        off[dim] = gap.max(old);
+        // Same rounding order as the point distances: a lower bound of every far point's d2.
+        let rd = off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
+        let visit = out.len() < k || out.last().is_some_and(|w| rd <= w.d2);
+        if visit {
+            self.search(q, k, keep, far.0, level + 1, far.1, far.2, off, out);
+        }
+        off[dim] = old;
+    }
+}
+
+/// Splits one node's points at their median along the dimension of largest extent.
+fn split_node(items: &mut [([f64; 3], u32)]) -> (u8, f64) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for (p, _) in items.iter() {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let ext = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+    let dim = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+        0
+    } else if ext[1] >= ext[2] {
+        1
+    } else {
+        2
+    };
+    let mid = items.len() / 2;
+    if items.is_empty() {
+        return (dim as u8, 0.0);
+    }
+    let (_, m, _) = items.select_nth_unstable_by(mid, |a, b| a.0[dim].total_cmp(&b.0[dim]));
+    (dim as u8, m.0[dim])
+}
+
+/// Inserts `n` into the sorted best-`k` list `out` if it belongs there.
+#[inline]
+fn offer(out: &mut Vec<Neighbour>, k: usize, n: Neighbour) {
+    if out.len() >= k {
+        match out.last() {
+            Some(w) if n.before(w) => {
+                out.pop();
+            }
+            _ => return,
+        }
+    }
+    let at = out.partition_point(|x| x.before(&n));
+    out.insert(at, n);
+}
+
 /// Median of `values` (reorders them); `None` when empty.
 pub fn median(values: &mut [f64]) -> Option<f64> {
     if values.is_empty() {
@@ -284,5 +529,82 @@ mod tests {
         let id = mat4_mul(&m, &invert_rigid(&m));
         let (dt, da) = pose_difference(&id, &crate::ingest::types::IDENTITY4);
         assert!(dt < 1e-12 && da < 1e-6);
+    }
+
+    /// Brute force: every kept candidate sorted by (squared distance, index), first `k`.
+    fn brute(
+        pts: &[[f64; 3]],
+        q: &[f64; 3],
+        k: usize,
+        keep: &dyn Fn(usize) -> bool,
+    ) -> Vec<(f64, u32)> {
+        let mut all: Vec<(f64, u32)> = (0u32..)
+            .zip(pts)
+            .filter(|(i, _)| keep(*i as usize))
+            .map(|(i, p)| {
+                let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+                (dx * dx + dy * dy + dz * dz, i)
+            })
+            .collect();
+        all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        all.truncate(k);
+        all
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// `KnnIndex::knn` is brute force, ties and duplicates included (coordinates on a coarse
+        /// integer grid make both common), with and without a mask, for points and off-cloud
+        /// queries.
+        #[test]
+        fn knn_index_is_brute_force(
+            raw in proptest::collection::vec((0i32..6, 0i32..6, 0i32..3), 1..400),
+            scale in proptest::prelude::prop_oneof![proptest::prelude::Just(1.0), 0.001f64..10.0],
+            k in 1usize..40,
+            mask_seed in proptest::prelude::any::<u64>(),
+            queries in proptest::collection::vec((-1.0f64..7.0, -1.0f64..7.0, -1.0f64..4.0), 0..8),
+        ) {
+            let pts: Vec<[f64; 3]> = raw
+                .iter()
+                .map(|&(x, y, z)| [f64::from(x) * scale, f64::from(y) * scale, f64::from(z) * scale])
+                .collect();
+            let ix = KnnIndex::new(&pts).unwrap();
+            proptest::prop_assert_eq!(ix.len(), pts.len());
+            let keep_id = |i: usize| (mask_seed >> (i % 64)) & 1 == 1 || i.is_multiple_of(7);
+            let keep_leaf: Vec<bool> = ix.ids().iter().map(|&id| keep_id(id as usize)).collect();
+            let mut qs: Vec<[f64; 3]> = pts.clone();
+            qs.extend(queries.iter().map(|&(x, y, z)| [x * scale, y * scale, z * scale]));
+            let mut nb = Vec::new();
+            for q in &qs {
+                ix.knn(q, k, None, &mut nb);
+                let got: Vec<(f64, u32)> = nb.iter().map(|n| (n.d2, n.id)).collect();
+                proptest::prop_assert_eq!(&got, &brute(&pts, q, k, &|_| true));
+                for n in &nb {
+                    proptest::prop_assert_eq!(ix.points()[n.pos as usize], pts[n.id as usize]);
+                }
+                ix.knn(q, k, Some(&keep_leaf), &mut nb);
+                let got: Vec<(f64, u32)> = nb.iter().map(|n| (n.d2, n.id)).collect();
+                proptest::prop_assert_eq!(&got, &brute(&pts, q, k, &keep_id));
+            }
+            let back = ix.to_build_order(ix.ids());
+            proptest::prop_assert!(back.iter().enumerate().all(|(i, &id)| id as usize == i));
+        }
+    }
+
+    #[test]
+    fn knn_index_rejects_empty_and_non_finite() {
+        assert!(KnnIndex::new(&[]).is_none());
+        assert!(KnnIndex::new(&[[0.0, f64::NAN, 0.0]]).is_none());
+        // Many coincident points (more than a leaf holds) still answer exactly.
+        let pts = vec![[1.0, 2.0, 3.0]; 100];
+        let ix = KnnIndex::new(&pts).unwrap();
+        let mut nb = Vec::new();
+        ix.knn(&[1.0, 2.0, 3.0], 5, None, &mut nb);
+        assert_eq!(
+            nb.iter().map(|n| n.id).collect::<Vec<_>>(),
+            vec![0, 1, 2, 3, 4]
+        );
+        ix.knn(&[1.0, 2.0, 3.0], 0, None, &mut nb);
+        assert!(nb.is_empty());
     }
 }

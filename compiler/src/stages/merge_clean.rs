@@ -31,12 +31,25 @@
 //!   whose neighbourhood fits no plane keeps `albedo = ρ`. Computed by an indexed parallel map, so
 //!   thread-count independent. Not modelled: non-Lambertian (e.g. retro-reflective) surfaces and any
 //!   residual range dependence of the instrument's calibration.
+//! - **One neighbour index** ([`KnnIndex`]) over the merged cloud serves both passes: SOR queries
+//!   every point, the normals query the kept points with a keep mask (without voxel thinning the
+//!   cleaned cloud is exactly the kept subset in merged order; with thinning the thinned cloud
+//!   gets its own index). Queries run in the index's leaf order and are put back in merged order,
+//!   so results do not depend on the thread count. The SOR means depend on the neighbour
+//!   distances only, which are kiddo's bit for bit. A normal also depends on the order and, at
+//!   the `NORMAL_K`-th neighbour, the choice among points at exactly equal distance: for the few
+//!   points whose `NORMAL_K + 1` nearest contain such a tie between distinct points (about 1 in
+//!   16 000 on the estec campaign: scan grids give symmetric neighbours), the albedo is
+//!   recomputed with kiddo's tree over the cleaned cloud, as versions before the index did, so a
+//!   campaign compiles to the same bytes (release id) as before.
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::geometry::{build_tree, knn, local_plane, mean_std, translation_part, Tree3};
+use super::geometry::{
+    build_tree, fit_plane, local_plane, mean_std, translation_part, KnnIndex, Neighbour,
+};
 use crate::ingest::types::{transform, Matrix4, PointCloud};
 use crate::stage::{Stage, StageCx, StageError};
 
@@ -210,41 +223,95 @@ impl MergeClean {
         all.reflectance_db = db;
         all.reflectance = rho;
         all.stats.input_points = all.points.len();
-        let keep = self.outlier_mask(&all.points, &mut all.stats);
+        // One index for both neighbourhood passes (the points are finite: checked above).
+        let index = KnnIndex::new(&all.points);
+        if index.is_none() && !all.points.is_empty() {
+            return Err(StageError::new(
+                Self::NAME,
+                format!(
+                    "{} merged points, expected at most {}",
+                    all.points.len(),
+                    u32::MAX
+                ),
+            ));
+        }
+        let keep = self.outlier_mask(index.as_ref(), all.points.len(), &mut all.stats);
         let mut idx: Vec<usize> = (0..all.points.len())
             .filter(|&i| keep.get(i) == Some(&true))
             .collect();
         all.stats.outliers_removed = all.points.len() - idx.len();
-        if let Some(v) = self.voxel_m {
-            let before = idx.len();
-            idx = voxel_thin(&all.points, idx, v);
-            all.stats.thinned = before - idx.len();
-        }
-        let mut out = select(all, &idx);
         let origins: Vec<Vector3<f64>> = scans
             .iter()
             .map(|s| translation_part(&s.ground_from_socs))
             .collect();
-        out.albedo = out
-            .reflectance
-            .as_deref()
-            .map(|rho| incidence_albedo(&out.points, &out.scan, rho, &origins));
+        if let Some(v) = self.voxel_m {
+            drop(index);
+            let before = idx.len();
+            idx = voxel_thin(&all.points, idx, v);
+            all.stats.thinned = before - idx.len();
+            let mut out = select(all, &idx);
+            out.albedo = out
+                .reflectance
+                .as_deref()
+                .map(|rho| incidence_albedo(&out.points, &out.scan, rho, &origins));
+            return Ok(out);
+        }
+        // Without thinning the cleaned cloud is the kept subset in merged order: its neighbours
+        // are the kept neighbours in the merged index.
+        let mut ties = Vec::new();
+        all.albedo = match (&all.reflectance, &index) {
+            (Some(rho), Some(ix)) => {
+                let keep_leaf: Vec<bool> = ix
+                    .ids()
+                    .par_iter()
+                    .map(|&id| keep.get(id as usize) == Some(&true))
+                    .collect();
+                let (albedo, t) = albedo_indexed(ix, Some(&keep_leaf), &all.scan, rho, &origins);
+                ties = t;
+                Some(albedo)
+            }
+            (Some(rho), None) => Some(rho.clone()),
+            (None, _) => None,
+        };
+        drop(index);
+        drop(keep);
+        let mut out = select(all, &idx);
+        // Tied points, as indices of the cleaned cloud (`idx` is ascending without thinning).
+        let ties: Vec<usize> = ties
+            .iter()
+            .filter_map(|&id| idx.binary_search(&(id as usize)).ok())
+            .collect();
+        if let (Some(albedo), Some(rho)) = (out.albedo.as_mut(), out.reflectance.as_deref()) {
+            resolve_ties(&out.points, &out.scan, rho, &origins, &ties, albedo);
+        }
         Ok(out)
     }
 
-    /// `true` for points kept by the statistical outlier filter.
-    fn outlier_mask(&self, points: &[[f64; 3]], stats: &mut MergeStats) -> Vec<bool> {
-        let Some(tree) = build_tree(points).filter(|_| self.sor_k > 0 && points.len() > self.sor_k)
-        else {
-            return vec![true; points.len()];
+    /// `true` for points kept by the statistical outlier filter (`n` points, `index` over them).
+    fn outlier_mask(
+        &self,
+        index: Option<&KnnIndex>,
+        n: usize,
+        stats: &mut MergeStats,
+    ) -> Vec<bool> {
+        let Some(index) = index.filter(|ix| self.sor_k > 0 && ix.len() > self.sor_k) else {
+            return vec![true; n];
         };
-        let means: Vec<f64> = points
+        let k = self.sor_k + 1;
+        // Queries in leaf order (memory touched in order), results back in merged order.
+        let leaf_means: Vec<f64> = index
+            .points()
             .par_iter()
-            .map(|p| {
-                let nn = knn(&tree, p, self.sor_k + 1);
-                nn.iter().skip(1).map(|x| x.1).sum::<f64>() / self.sor_k as f64
-            })
+            .map_init(
+                || Vec::with_capacity(k),
+                |nb: &mut Vec<Neighbour>, p| {
+                    index.knn(p, k, None, nb);
+                    nb.iter().skip(1).map(|x| x.d2.sqrt()).sum::<f64>() / self.sor_k as f64
+                },
+            )
             .collect();
+        let means = index.to_build_order(&leaf_means);
+        drop(leaf_means);
         let (mean, std) = mean_std(&means);
         stats.sor_mean_m = mean;
         stats.sor_std_m = std;
@@ -260,34 +327,144 @@ pub fn incidence_albedo(
     rho: &[f32],
     origins: &[Vector3<f64>],
 ) -> Vec<f32> {
-    let Some(tree) = build_tree(points) else {
-        return rho.to_vec();
-    };
-    points
-        .par_iter()
-        .zip(rho.par_iter())
-        .zip(scan.par_iter())
-        .map(|((p, &r), &s)| {
-            let cos = origins
-                .get(s as usize)
-                .and_then(|o| cos_incidence(&tree, points, p, o))
-                .unwrap_or(1.0);
-            (f64::from(r) / cos.max(MIN_COS_INCIDENCE)) as f32
-        })
-        .collect()
+    match KnnIndex::new(points) {
+        Some(ix) if rho.len() == points.len() && scan.len() == points.len() => {
+            let (mut albedo, ties) = albedo_indexed(&ix, None, scan, rho, origins);
+            let ties: Vec<usize> = ties.iter().map(|&i| i as usize).collect();
+            resolve_ties(points, scan, rho, origins, &ties, &mut albedo);
+            albedo
+        }
+        _ => rho.to_vec(),
+    }
 }
 
-/// `|n·(o − p)| / |o − p|` with `n` the PCA normal of the neighbourhood of `p`; `None` when no
-/// plane fits or `p` is the origin.
-fn cos_incidence(
-    tree: &Tree3,
+/// Recomputes the albedo of the points `ties` (indices into `points`) whose normal
+/// neighbourhood has a distance tie between distinct points, with the neighbours of a kiddo
+/// tree over `points`: the neighbourhoods `merge.clean` has always used, tie order included, so
+/// releases keep their bytes (see the module doc).
+fn resolve_ties(
     points: &[[f64; 3]],
+    scan: &[u32],
+    rho: &[f32],
+    origins: &[Vector3<f64>],
+    ties: &[usize],
+    albedo: &mut [f32],
+) {
+    if ties.is_empty() {
+        return;
+    }
+    let Some(tree) = build_tree(points) else {
+        return;
+    };
+    let fixed: Vec<(usize, f32)> = ties
+        .par_iter()
+        .filter_map(|&i| {
+            let p = points.get(i)?;
+            let r = rho.get(i).copied()?;
+            let cos = scan
+                .get(i)
+                .and_then(|&s| origins.get(s as usize))
+                .and_then(|o| {
+                    let (plane, _) = local_plane(&tree, points, p, NORMAL_K)?;
+                    cos_from_normal(&plane.normal, p, o)
+                })
+                .unwrap_or(1.0);
+            Some((i, (f64::from(r) / cos.max(MIN_COS_INCIDENCE)) as f32))
+        })
+        .collect();
+    for (i, a) in fixed {
+        if let Some(v) = albedo.get_mut(i) {
+            *v = a;
+        }
+    }
+}
+
+/// [`incidence_albedo`] of the points of `index` that `keep` (leaf order) marks, among
+/// themselves; `scan` and `rho` in build order, result in build order (0 where not kept),
+/// together with the build indices of the points whose neighbourhood has a tie (ascending),
+/// left for [`resolve_ties`].
+fn albedo_indexed(
+    index: &KnnIndex,
+    keep: Option<&[bool]>,
+    scan: &[u32],
+    rho: &[f32],
+    origins: &[Vector3<f64>],
+) -> (Vec<f32>, Vec<u32>) {
+    let leaf: Vec<(f32, bool)> = index
+        .points()
+        .par_iter()
+        .zip(index.ids().par_iter())
+        .enumerate()
+        .map_init(
+            || {
+                (
+                    Vec::with_capacity(NORMAL_K + 1),
+                    Vec::with_capacity(NORMAL_K),
+                )
+            },
+            |(nb, pv), (pos, (p, &id))| {
+                if keep.is_some_and(|m| m.get(pos) != Some(&true)) {
+                    return (0.0, false);
+                }
+                let r = rho.get(id as usize).copied().unwrap_or(0.0);
+                let Some(o) = scan.get(id as usize).and_then(|&s| origins.get(s as usize)) else {
+                    return (r, false);
+                };
+                let (cos, tie) = cos_incidence(index, keep, nb, pv, p, o);
+                let cos = cos.unwrap_or(1.0);
+                ((f64::from(r) / cos.max(MIN_COS_INCIDENCE)) as f32, tie)
+            },
+        )
+        .collect();
+    let ties: Vec<u32> = {
+        let mut t: Vec<u32> = index
+            .ids()
+            .iter()
+            .zip(&leaf)
+            .filter(|(_, v)| v.1)
+            .map(|(&id, _)| id)
+            .collect();
+        t.sort_unstable();
+        t
+    };
+    let leaf: Vec<f32> = leaf.into_iter().map(|v| v.0).collect();
+    (index.to_build_order(&leaf), ties)
+}
+
+/// `|n·(o − p)| / |o − p|` with `n` the PCA normal of the [`NORMAL_K`] nearest kept points of
+/// `p`, nearest first (`None` when no plane fits or `p` is the origin), and whether the
+/// neighbourhood is tied: two distinct points at the same distance among the first
+/// `NORMAL_K + 1`, where the order or the set would depend on the tie rule. `nb` and `pv` are
+/// scratch buffers.
+fn cos_incidence(
+    index: &KnnIndex,
+    keep: Option<&[bool]>,
+    nb: &mut Vec<Neighbour>,
+    pv: &mut Vec<Vector3<f64>>,
     p: &[f64; 3],
     origin: &Vector3<f64>,
-) -> Option<f64> {
-    let (plane, _) = local_plane(tree, points, p, NORMAL_K)?;
+) -> (Option<f64>, bool) {
+    index.knn(p, NORMAL_K + 1, keep, nb);
+    let pts = index.points();
+    let at = |n: &Neighbour| pts.get(n.pos as usize);
+    let tie = nb
+        .windows(2)
+        .any(|w| matches!(w, [a, b] if a.d2 == b.d2 && at(a) != at(b)));
+    pv.clear();
+    pv.extend(
+        nb.iter()
+            .take(NORMAL_K)
+            .filter_map(at)
+            .map(|q| Vector3::from(*q)),
+    );
+    let cos = fit_plane(pv).and_then(|plane| cos_from_normal(&plane.normal, p, origin));
+    (cos, tie)
+}
+
+/// `|n·(o − p)| / |o − p|`; `None` when not finite (`p` is the origin).
+fn cos_from_normal(normal: &Vector3<f64>, p: &[f64; 3], origin: &Vector3<f64>) -> Option<f64> {
     let beam = origin - Vector3::from(*p);
-    let cos = plane.normal.dot(&beam).abs() / beam.norm();
+    let cos = normal.dot(&beam).abs() / beam.norm();
     cos.is_finite().then_some(cos)
 }
 
