@@ -9,18 +9,8 @@ use std::process::Command;
 
 use regolith_corpus::{generate, write_bad_inputs, GenerateOptions, Preset};
 
-fn copy_dir(from: &Path, to: &Path) {
-    fs::create_dir_all(to).unwrap();
-    for e in fs::read_dir(from).unwrap() {
-        let p = e.unwrap().path();
-        let dest = to.join(p.file_name().unwrap());
-        if p.is_dir() {
-            copy_dir(&p, &dest);
-        } else {
-            fs::copy(&p, &dest).unwrap();
-        }
-    }
-}
+mod common;
+use common::copy_dir;
 
 fn check(campaign: &Path) -> (Option<i32>, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_regolith"))

@@ -17,3 +17,17 @@ pub fn certificate(db: &str, entry: &serde_json::Value) -> serde_json::Value {
     let path = std::path::Path::new(db).join(format!("objects/sha256/{}/{}", &h[..2], &h[2..]));
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
+
+/// Copies the directory tree `from` to `to`.
+pub fn copy_dir(from: &std::path::Path, to: &std::path::Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let dest = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_dir(&p, &dest);
+        } else {
+            std::fs::copy(&p, &dest).unwrap();
+        }
+    }
+}
