@@ -425,3 +425,44 @@ proptest! {
         }
     }
 }
+
+/// A LAZ file whose extended VLR claims more bytes than the file has is an error naming the
+/// record and its offset; the `las` crate alone would try to allocate the claimed length.
+#[test]
+fn a_laz_evlr_longer_than_the_file_is_an_error() {
+    let mut builder = ::las::Builder::from((1, 4));
+    builder.point_format = ::las::point::Format::new(6).unwrap();
+    builder.point_format.is_compressed = true;
+    builder.evlrs.push(::las::Vlr {
+        user_id: "regolith".into(),
+        record_id: 7,
+        description: "test".into(),
+        data: vec![1, 2, 3, 4],
+    });
+    let header = builder.into_header().unwrap();
+    let mut w = ::las::Writer::new(Cursor::new(Vec::new()), header).unwrap();
+    for i in 0..50 {
+        w.write_point(::las::Point {
+            x: f64::from(i),
+            y: 2.0 * f64::from(i),
+            z: 0.5,
+            gps_time: Some(f64::from(i)),
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    let good = w.into_inner().unwrap().into_inner();
+    let read = las::read_las(&good, &lim()).unwrap();
+    assert_eq!(read.points.len(), 50);
+    // LAS 1.4 header: start_of_first_evlr (u64) at byte 235, number_of_evlrs (u32) at 243.
+    let start = u64::from_le_bytes(good[235..243].try_into().unwrap()) as usize;
+    assert_eq!(u32::from_le_bytes(good[243..247].try_into().unwrap()), 1);
+    assert_eq!(&good[start + 2..start + 10], b"regolith");
+    let mut bad = good.clone();
+    bad[start + 20..start + 28].copy_from_slice(&(u64::MAX / 4).to_le_bytes());
+    let err = las::read_las(&bad, &lim()).unwrap_err().to_string();
+    assert!(
+        err.contains("extended VLR 1 of 1") && err.contains(&start.to_string()),
+        "{err}"
+    );
+}

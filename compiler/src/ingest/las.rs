@@ -9,7 +9,9 @@
 //!   also makes; the record must be at least the format's length), so both paths agree on the
 //!   point count, the format and the transforms. The VLRs are walked (headers only, nothing allocated) to check
 //!   that they end before the point data; EVLRs hold no points and are not read, only checked
-//!   not to overlap the points.
+//!   not to overlap the points. Before a LAZ file goes to the `las` crate (which reads its EVLRs
+//!   and allocates the lengths their headers claim), every EVLR is checked to end inside the
+//!   file.
 //! - Point records have a fixed size, so they are decoded directly from the byte buffer:
 //!   X/Y/Z are `i32` at bytes 0/4/8 (`scale * value + offset`, as `f64`: coordinates reach
 //!   10^6 m), intensity `u16` at 12, and RGB (3 × `u16`) at 20 in format 2, at 28 in formats 3
@@ -142,6 +144,9 @@ fn read_header<R: Read + Seek>(r: &mut R, len: u64) -> Result<Kind> {
     let header = builder.into_header().map_err(las_err)?;
     let format = *header.point_format();
     if format.is_compressed {
+        if let Some(evlr) = evlr {
+            check_evlrs(r, evlr.start_of_first_evlr, evlr.number_of_evlrs, len)?;
+        }
         return Ok(Kind::Compressed);
     }
     // The VLRs follow the header and must end before the point data (as `las::Reader` checks).
@@ -200,6 +205,42 @@ fn read_header<R: Read + Seek>(r: &mut R, len: u64) -> Result<Kind> {
         }
     }
     Ok(Kind::Plain(layout))
+}
+
+/// Bytes of an extended VLR header (LAS 1.4 R15 §2.7).
+const EVLR_HEADER_BYTES: u64 = 60;
+
+/// Checks that every extended VLR announced at `start` lies inside the `len` bytes of the
+/// source. The `las` crate reads the EVLRs of a LAZ file and allocates whatever length their
+/// headers claim, so a corrupt length would exhaust memory instead of giving an error.
+fn check_evlrs<R: Read + Seek>(r: &mut R, start: u64, count: u32, len: u64) -> Result<()> {
+    let mut at = start;
+    for i in 0..count {
+        let cut = || {
+            let msg = format!(
+                "LAS: extended VLR {} of {count} runs past the end of the file",
+                i + 1
+            );
+            IngestError::invalid(msg).at_offset(at)
+        };
+        if at.checked_add(EVLR_HEADER_BYTES).is_none_or(|e| e > len) {
+            return Err(cut());
+        }
+        r.seek(SeekFrom::Start(at))?;
+        let mut h = [0u8; EVLR_HEADER_BYTES as usize];
+        r.read_exact(&mut h).map_err(|_| cut())?;
+        let mut l = [0u8; 8];
+        l.copy_from_slice(h.get(20..28).unwrap_or(&[0; 8]));
+        let end = at
+            .checked_add(EVLR_HEADER_BYTES)
+            .and_then(|e| e.checked_add(u64::from_le_bytes(l)));
+        match end {
+            Some(e) if e <= len => at = e,
+            _ => return Err(cut()),
+        }
+    }
+    r.seek(SeekFrom::Start(0))?;
+    Ok(())
 }
 
 /// Decoded columns, filled block by block.
