@@ -7,7 +7,6 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::io::Cursor;
-use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -20,17 +19,8 @@ fn lim() -> Limits {
     Limits::default()
 }
 
-fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/scans")
-        .join(name)
-}
-
-fn realdata(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/realdata")
-        .join(name)
-}
+mod common;
+use common::{realdata, scan_data as data};
 
 /// The `las` crate's decoding of the same bytes (the reference).
 fn reference(bytes: &[u8]) -> Result<PointCloud, String> {

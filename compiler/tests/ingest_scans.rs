@@ -6,24 +6,13 @@
 // Test helpers unwrap; float literals are copied verbatim from the files they check.
 #![allow(clippy::unwrap_used, clippy::excessive_precision)]
 
-use std::path::{Path, PathBuf};
-
 use proptest::prelude::*;
 use regolith_compiler::ingest::types::{transform, PointCloud};
 use regolith_compiler::ingest::{e57, las, ply, ptx, riscan_ascii, riscan_rsp, sop_dat, tiepoints};
 use regolith_format::limits::Limits;
 
-fn data(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data/scans")
-        .join(name)
-}
-
-fn realdata(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/realdata")
-        .join(name)
-}
+mod common;
+use common::{realdata, scan_data as data};
 
 fn bytes(name: &str) -> Vec<u8> {
     std::fs::read(data(name)).unwrap()
