@@ -699,6 +699,7 @@ fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
     {
         return;
     }
+    let level = shadows::log_level(&views);
     let score = |preds: &[Prediction]| {
         let v: Vec<shadows::ShadowView<'_>> = views
             .iter()
@@ -708,7 +709,7 @@ fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
                 ..*v
             })
             .collect();
-        shadows::overlap(&v)
+        -shadows::log_residual(&v, level)
     };
     let mut direction = light;
     let mut best = score(&shadowed);
