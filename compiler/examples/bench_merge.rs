@@ -19,7 +19,11 @@ use regolith_compiler::ingest::types::{transform, Matrix4};
 use regolith_compiler::inventory;
 use regolith_compiler::stage::{Stage, StageCx};
 use regolith_compiler::stages::geometry::{build_tree, knn, KnnIndex};
-use regolith_compiler::stages::merge_clean::{MergeClean, MergeScan, MergedCloud, NORMAL_K};
+use regolith_compiler::stages::merge_clean::{MergeClean, MergeScan, MergedCloud};
+
+/// Neighbours of the normal-sized queries timed and checked (the incidence normals of
+/// `merge.clean` used the 16 nearest points before they moved to a ground window).
+const NORMAL_K: usize = 16;
 use regolith_format::limits::Limits;
 use sha2::{Digest, Sha256};
 
@@ -157,6 +161,7 @@ fn main() {
     let out = MergeClean::default().run(&cx, &scans).expect("merge");
     let dt = t.elapsed().as_secs_f64();
     println!("merge.clean {dt:.2} s: {:?}", out.stats);
+    println!("radiometry {:?}", out.radiometry);
     println!("digest {}", digest(&out));
     if args.iter().any(|a| a == "--check") {
         check_neighbours(&out.points);

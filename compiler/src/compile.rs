@@ -323,6 +323,7 @@ fn laser_terrain(
         })).collect::<Vec<_>>(),
         "icp": {"iterations": icp_out.iterations, "converged": icp_out.converged},
         "merge": merged.stats,
+        "radiometry": merged.radiometry,
     });
     Ok((report, merged.points))
 }

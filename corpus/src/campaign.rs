@@ -125,7 +125,7 @@ what the generator knows and the campaign does not; no campaign entry points int
 | `captures/locNN_{left,right}_{a,b}.png` | raw (distorted) 8-bit NavCam frames, two per pose with independent noise |
 | `truth/height.exr` + `height.json` | true heights (float32, channel `Z`) and grid geometry |
 | `truth/albedo.png` | true albedo, 16-bit grey (value / 65535), same grid as the heights |
-| `truth/scans.json` | every scan's true SOCS → ground transform (4x4 and pose) |
+| `truth/scans.json` | every scan's true SOCS → ground transform (4x4 and pose), and the reflectance range slope and noise it was simulated with |
 | `truth/sfm.json` | the ground → SfM similarity (scale, R, t) |
 | `truth/cameras.json` | calibrated and true intrinsics (true includes hidden distortion), stereo extrinsics |
 | `truth/captures.json` | every true `ground_from_camera` (includes the hidden pose bias) and the rig pose |

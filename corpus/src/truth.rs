@@ -54,6 +54,11 @@ pub struct ScanTruth {
     pub points: usize,
     /// Markers in the tie-point list.
     pub tiepoints: Vec<String>,
+    /// Range slope of the reflectance error the instrument was simulated with, dB per metre
+    /// (`Reflectance[dB] = 10·log10(albedo · cos i) + slope · range + noise`).
+    pub reflectance_range_slope_db_per_m: f64,
+    /// Standard deviation of the reflectance noise, dB.
+    pub reflectance_noise_db: f64,
 }
 
 impl ScanTruth {
@@ -73,6 +78,9 @@ impl ScanTruth {
             rays: scan.rays,
             points: scan.points.len(),
             tiepoints: scan.tiepoints.iter().map(|(n, _)| n.clone()).collect(),
+            reflectance_range_slope_db_per_m:
+                crate::instruments::riegl::REFLECTANCE_RANGE_SLOPE_DB_PER_M,
+            reflectance_noise_db: crate::instruments::riegl::REFLECTANCE_NOISE_DB,
         }
     }
 }

@@ -20,7 +20,10 @@
 //! - Every reduction is sequential over a `Vec` collected from an indexed parallel map, so sums do
 //!   not depend on the rayon thread count (house style practice 11).
 
+use std::collections::HashMap;
+use std::hash::Hash;
 use std::num::NonZero;
+use std::ops::AddAssign;
 
 use kiddo::SquaredEuclidean;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -491,6 +494,40 @@ pub fn rms(values: &[f64]) -> f64 {
 /// True when every coordinate is finite.
 pub fn all_finite(points: &[[f64; 3]]) -> bool {
     points.iter().all(|p| p.iter().all(|v| v.is_finite()))
+}
+
+/// Indices per binning chunk of [`bin_sums`] (fixed, so sums do not depend on the thread count).
+const BIN_CHUNK: usize = 1 << 20;
+
+/// Sums per key of the values `f(i)` for `i` in `0..n` (`None` skips `i`). Fixed-size chunks
+/// are binned in parallel and merged in chunk order, each key once per chunk, so every sum is
+/// added in the same order whatever the thread count.
+pub fn bin_sums<K, A>(n: usize, f: impl Fn(usize) -> Option<(K, A)> + Sync) -> HashMap<K, A>
+where
+    K: Hash + Eq + Send,
+    A: AddAssign + Default + Send,
+{
+    let chunks: Vec<HashMap<K, A>> = (0..n.div_ceil(BIN_CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut m: HashMap<K, A> = HashMap::new();
+            for i in c * BIN_CHUNK..((c + 1) * BIN_CHUNK).min(n) {
+                if let Some((k, v)) = f(i) {
+                    *m.entry(k).or_default() += v;
+                }
+            }
+            m
+        })
+        .collect();
+    let mut all: HashMap<K, A> = HashMap::new();
+    for m in chunks {
+        // Each key occurs once per chunk map, so the order of this walk cannot change a sum.
+        #[allow(clippy::iter_over_hash_type)]
+        for (k, v) in m {
+            *all.entry(k).or_default() += v;
+        }
+    }
+    all
 }
 
 #[cfg(test)]

@@ -21,42 +21,30 @@
 //!   warning), and keeps the raw `reflectance_db` only when every scan has it.
 //! - **Incidence correction** (`albedo`): `ρ` is relative to a white Lambertian target facing the
 //!   beam, so for a Lambertian surface it is `albedo · cos i`, with `i` the angle between the beam
-//!   and the surface normal — left alone, the texture would carry the scanner's own shading. Per
-//!   point of the *cleaned* cloud (outliers would tilt normals), the normal is the PCA normal of
-//!   its [`NORMAL_K`] nearest neighbours in the merged ground-frame cloud (independent of any DEM,
-//!   and several scans densify the neighbourhood); the beam comes from the point's scanner origin
-//!   `o` (the translation of its scan's `ground_from_socs`): `cos i = |n·(o − p)| / |o − p|` (the
-//!   PCA normal has no sign) and `albedo = ρ / max(cos i, MIN_COS_INCIDENCE)`. The floor (i ≈ 78°)
-//!   bounds the gain where a few degrees of normal error would swing `1 / cos i` wildly. A point
-//!   whose neighbourhood fits no plane keeps `albedo = ρ`. Computed by an indexed parallel map, so
-//!   thread-count independent. Not modelled: non-Lambertian (e.g. retro-reflective) surfaces and any
-//!   residual range dependence of the instrument's calibration.
-//! - **One neighbour index** ([`KnnIndex`]) over the merged cloud serves both passes: SOR queries
-//!   every point, the normals query the kept points with a keep mask (without voxel thinning the
-//!   cleaned cloud is exactly the kept subset in merged order; with thinning the thinned cloud
-//!   gets its own index). Queries run in the index's leaf order and are put back in merged order,
-//!   so results do not depend on the thread count. The SOR means depend on the neighbour
-//!   distances only, which are kiddo's bit for bit. A normal also depends on the order and, at
-//!   the `NORMAL_K`-th neighbour, the choice among points at exactly equal distance: for the few
-//!   points whose `NORMAL_K + 1` nearest contain such a tie between distinct points (about 1 in
-//!   16 000 on the estec campaign: scan grids give symmetric neighbours), the albedo is
-//!   recomputed with kiddo's tree over the cleaned cloud, as versions before the index did, so a
-//!   campaign compiles to the same bytes (release id) as before.
+//!   and the surface normal — left alone, the texture would carry the scanner's own shading.
+//!   [`incidence`] divides it out per point of the *cleaned* cloud (outliers
+//!   would tilt normals), with the normal of a fixed 6 cm ground window of the merged cloud
+//!   (several scans densify it, and it does not depend on any DEM) and the beam from the point's
+//!   scanner origin; see that module for why not the nearest neighbours.
+//! - **Cross-scan radiometric calibration**: [`radiometry`] fits the instrument's residual range
+//!   dependence of the reflectance and a per-scan offset on the overlaps and divides them out of
+//!   `reflectance` and `albedo`, so stations agree where they see the same ground.
+//! - **One neighbour index** ([`KnnIndex`]) over the merged cloud serves the SOR pass; queries
+//!   run in the index's leaf order and are put back in merged order, so results do not depend
+//!   on the thread count (the SOR means depend on the neighbour distances only, which are
+//!   kiddo's bit for bit).
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::geometry::{
-    build_tree, fit_plane, local_plane, mean_std, translation_part, KnnIndex, Neighbour,
-};
+use super::geometry::{mean_std, translation_part, KnnIndex, Neighbour};
+use super::incidence::{self, incidence_albedo};
+use super::radiometry::{self, RadiometricCalibration};
 use crate::ingest::types::{transform, Matrix4, PointCloud};
 use crate::stage::{Stage, StageCx, StageError};
 
-/// Neighbours of the PCA normal of the incidence correction (with the point itself).
-pub const NORMAL_K: usize = 16;
-/// Floor of `cos i` in the incidence correction: the gain `1 / cos i` is at most 5.
-pub const MIN_COS_INCIDENCE: f64 = 0.2;
+pub use super::incidence::MIN_COS_INCIDENCE;
 
 /// One registered scan.
 #[derive(Debug, Clone, PartialEq)]
@@ -100,6 +88,9 @@ pub struct MergedCloud {
     pub scan: Vec<u32>,
     /// Counts.
     pub stats: MergeStats,
+    /// The cross-scan radiometric calibration applied to `reflectance` and `albedo`, when the
+    /// scans overlapped enough to fit one.
+    pub radiometry: Option<RadiometricCalibration>,
 }
 
 /// Parameters of `merge.clean`.
@@ -236,54 +227,27 @@ impl MergeClean {
             ));
         }
         let keep = self.outlier_mask(index.as_ref(), all.points.len(), &mut all.stats);
+        drop(index);
         let mut idx: Vec<usize> = (0..all.points.len())
             .filter(|&i| keep.get(i) == Some(&true))
             .collect();
+        drop(keep);
         all.stats.outliers_removed = all.points.len() - idx.len();
+        if let Some(v) = self.voxel_m {
+            let before = idx.len();
+            idx = voxel_thin(&all.points, idx, v);
+            all.stats.thinned = before - idx.len();
+        }
         let origins: Vec<Vector3<f64>> = scans
             .iter()
             .map(|s| translation_part(&s.ground_from_socs))
             .collect();
-        if let Some(v) = self.voxel_m {
-            drop(index);
-            let before = idx.len();
-            idx = voxel_thin(&all.points, idx, v);
-            all.stats.thinned = before - idx.len();
-            let mut out = select(all, &idx);
-            out.albedo = out
-                .reflectance
-                .as_deref()
-                .map(|rho| incidence_albedo(&out.points, &out.scan, rho, &origins));
-            return Ok(out);
-        }
-        // Without thinning the cleaned cloud is the kept subset in merged order: its neighbours
-        // are the kept neighbours in the merged index.
-        let mut ties = Vec::new();
-        all.albedo = match (&all.reflectance, &index) {
-            (Some(rho), Some(ix)) => {
-                let keep_leaf: Vec<bool> = ix
-                    .ids()
-                    .par_iter()
-                    .map(|&id| keep.get(id as usize) == Some(&true))
-                    .collect();
-                let (albedo, t) = albedo_indexed(ix, Some(&keep_leaf), &all.scan, rho, &origins);
-                ties = t;
-                Some(albedo)
-            }
-            (Some(rho), None) => Some(rho.clone()),
-            (None, _) => None,
-        };
-        drop(index);
-        drop(keep);
         let mut out = select(all, &idx);
-        // Tied points, as indices of the cleaned cloud (`idx` is ascending without thinning).
-        let ties: Vec<usize> = ties
-            .iter()
-            .filter_map(|&id| idx.binary_search(&(id as usize)).ok())
-            .collect();
-        if let (Some(albedo), Some(rho)) = (out.albedo.as_mut(), out.reflectance.as_deref()) {
-            resolve_ties(&out.points, &out.scan, rho, &origins, &ties, albedo);
-        }
+        out.albedo = out
+            .reflectance
+            .as_deref()
+            .map(|rho| incidence_albedo(&out.points, &out.scan, rho, &origins));
+        calibrate(cx, scans, &origins, &mut out);
         Ok(out)
     }
 
@@ -320,152 +284,43 @@ impl MergeClean {
     }
 }
 
-/// `ρ / max(cos i, MIN_COS_INCIDENCE)` per point (module doc); `origins` indexed by scan.
-pub fn incidence_albedo(
-    points: &[[f64; 3]],
-    scan: &[u32],
-    rho: &[f32],
-    origins: &[Vector3<f64>],
-) -> Vec<f32> {
-    match KnnIndex::new(points) {
-        Some(ix) if rho.len() == points.len() && scan.len() == points.len() => {
-            let (mut albedo, ties) = albedo_indexed(&ix, None, scan, rho, origins);
-            let ties: Vec<usize> = ties.iter().map(|&i| i as usize).collect();
-            resolve_ties(points, scan, rho, origins, &ties, &mut albedo);
-            albedo
-        }
-        _ => rho.to_vec(),
-    }
-}
-
-/// Recomputes the albedo of the points `ties` (indices into `points`) whose normal
-/// neighbourhood has a distance tie between distinct points, with the neighbours of a kiddo
-/// tree over `points`: the neighbourhoods `merge.clean` has always used, tie order included, so
-/// releases keep their bytes (see the module doc).
-fn resolve_ties(
-    points: &[[f64; 3]],
-    scan: &[u32],
-    rho: &[f32],
-    origins: &[Vector3<f64>],
-    ties: &[usize],
-    albedo: &mut [f32],
-) {
-    if ties.is_empty() {
-        return;
-    }
-    let Some(tree) = build_tree(points) else {
+/// Fits the cross-scan radiometric calibration on the albedo and applies it to the albedo and
+/// the reflectance (module doc); a campaign whose scans do not overlap enough keeps its values
+/// and gets a warning.
+fn calibrate(cx: &StageCx, scans: &[MergeScan], origins: &[Vector3<f64>], out: &mut MergedCloud) {
+    let (Some(albedo), Some(rho)) = (out.albedo.as_mut(), out.reflectance.as_deref()) else {
         return;
     };
-    let fixed: Vec<(usize, f32)> = ties
-        .par_iter()
-        .filter_map(|&i| {
-            let p = points.get(i)?;
-            let r = rho.get(i).copied()?;
-            let cos = scan
-                .get(i)
-                .and_then(|&s| origins.get(s as usize))
-                .and_then(|o| {
-                    let (plane, _) = local_plane(&tree, points, p, NORMAL_K)?;
-                    cos_from_normal(&plane.normal, p, o)
-                })
-                .unwrap_or(1.0);
-            Some((i, (f64::from(r) / cos.max(MIN_COS_INCIDENCE)) as f32))
-        })
-        .collect();
-    for (i, a) in fixed {
-        if let Some(v) = albedo.get_mut(i) {
-            *v = a;
+    let names: Vec<String> = scans.iter().map(|s| s.name.clone()).collect();
+    match radiometry::fit(&out.points, &out.scan, albedo, rho, origins, &names) {
+        Ok(cal) => {
+            if !cal.applied {
+                cx.reporter.warn(
+                    MergeClean::NAME,
+                    "radiometry-implausible",
+                    format!(
+                        "scans' reflectance disagrees beyond an instrument calibration (range slope {:.3} dB/m, \
+                         offsets up to {:.2} dB; expected within {} dB/m and {} dB): left uncorrected",
+                        cal.range_slope_db_per_m,
+                        cal.scan_offsets_db.iter().map(|c| c.offset_db.abs()).fold(0.0, f64::max),
+                        radiometry::MAX_SLOPE_DB_PER_M,
+                        radiometry::MAX_OFFSET_DB,
+                    ),
+                );
+            }
+            radiometry::apply(&cal, &out.points, &out.scan, origins, albedo);
+            if let Some(rho) = out.reflectance.as_mut() {
+                radiometry::apply(&cal, &out.points, &out.scan, origins, rho);
+            }
+            out.radiometry = Some(cal);
         }
+        Err(radiometry::NotFitted::OneScan) => {}
+        Err(e) => cx.reporter.warn(
+            MergeClean::NAME,
+            "radiometry-not-fitted",
+            format!("reflectance not cross-calibrated between scans: {e}"),
+        ),
     }
-}
-
-/// [`incidence_albedo`] of the points of `index` that `keep` (leaf order) marks, among
-/// themselves; `scan` and `rho` in build order, result in build order (0 where not kept),
-/// together with the build indices of the points whose neighbourhood has a tie (ascending),
-/// left for [`resolve_ties`].
-fn albedo_indexed(
-    index: &KnnIndex,
-    keep: Option<&[bool]>,
-    scan: &[u32],
-    rho: &[f32],
-    origins: &[Vector3<f64>],
-) -> (Vec<f32>, Vec<u32>) {
-    let leaf: Vec<(f32, bool)> = index
-        .points()
-        .par_iter()
-        .zip(index.ids().par_iter())
-        .enumerate()
-        .map_init(
-            || {
-                (
-                    Vec::with_capacity(NORMAL_K + 1),
-                    Vec::with_capacity(NORMAL_K),
-                )
-            },
-            |(nb, pv), (pos, (p, &id))| {
-                if keep.is_some_and(|m| m.get(pos) != Some(&true)) {
-                    return (0.0, false);
-                }
-                let r = rho.get(id as usize).copied().unwrap_or(0.0);
-                let Some(o) = scan.get(id as usize).and_then(|&s| origins.get(s as usize)) else {
-                    return (r, false);
-                };
-                let (cos, tie) = cos_incidence(index, keep, nb, pv, p, o);
-                let cos = cos.unwrap_or(1.0);
-                ((f64::from(r) / cos.max(MIN_COS_INCIDENCE)) as f32, tie)
-            },
-        )
-        .collect();
-    let ties: Vec<u32> = {
-        let mut t: Vec<u32> = index
-            .ids()
-            .iter()
-            .zip(&leaf)
-            .filter(|(_, v)| v.1)
-            .map(|(&id, _)| id)
-            .collect();
-        t.sort_unstable();
-        t
-    };
-    let leaf: Vec<f32> = leaf.into_iter().map(|v| v.0).collect();
-    (index.to_build_order(&leaf), ties)
-}
-
-/// `|n·(o − p)| / |o − p|` with `n` the PCA normal of the [`NORMAL_K`] nearest kept points of
-/// `p`, nearest first (`None` when no plane fits or `p` is the origin), and whether the
-/// neighbourhood is tied: two distinct points at the same distance among the first
-/// `NORMAL_K + 1`, where the order or the set would depend on the tie rule. `nb` and `pv` are
-/// scratch buffers.
-fn cos_incidence(
-    index: &KnnIndex,
-    keep: Option<&[bool]>,
-    nb: &mut Vec<Neighbour>,
-    pv: &mut Vec<Vector3<f64>>,
-    p: &[f64; 3],
-    origin: &Vector3<f64>,
-) -> (Option<f64>, bool) {
-    index.knn(p, NORMAL_K + 1, keep, nb);
-    let pts = index.points();
-    let at = |n: &Neighbour| pts.get(n.pos as usize);
-    let tie = nb
-        .windows(2)
-        .any(|w| matches!(w, [a, b] if a.d2 == b.d2 && at(a) != at(b)));
-    pv.clear();
-    pv.extend(
-        nb.iter()
-            .take(NORMAL_K)
-            .filter_map(at)
-            .map(|q| Vector3::from(*q)),
-    );
-    let cos = fit_plane(pv).and_then(|plane| cos_from_normal(&plane.normal, p, origin));
-    (cos, tie)
-}
-
-/// `|n·(o − p)| / |o − p|`; `None` when not finite (`p` is the origin).
-fn cos_from_normal(normal: &Vector3<f64>, p: &[f64; 3], origin: &Vector3<f64>) -> Option<f64> {
-    let beam = origin - Vector3::from(*p);
-    let cos = normal.dot(&beam).abs() / beam.norm();
-    cos.is_finite().then_some(cos)
 }
 
 /// Keeps per voxel the point nearest to the voxel centre; output sorted by voxel key.
@@ -509,14 +364,15 @@ fn select(all: MergedCloud, idx: &[usize]) -> MergedCloud {
         albedo: all.albedo.as_deref().map(|v| pick(v, idx)),
         scan: pick(&all.scan, idx),
         stats: all.stats,
+        radiometry: all.radiometry,
     }
 }
 
 impl Stage for MergeClean {
     const NAME: &'static str = "merge.clean";
-    const VERSION: u32 = 2;
+    const VERSION: u32 = 3;
     const DESCRIPTION: &'static str =
-        "Transform scans to ground, merge, remove statistical outliers, optional voxel thinning; keep reflectance and its incidence-corrected albedo";
+        "Transform scans to ground, merge, remove statistical outliers, optional voxel thinning; keep reflectance and its incidence-corrected albedo, cross-calibrated between scans";
     type Input = [MergeScan];
     type Output = MergedCloud;
 
@@ -526,8 +382,17 @@ impl Stage for MergeClean {
             "sor_n_std": self.sor_n_std,
             "voxel_m": self.voxel_m,
             "reference_range_m": self.reference_range_m,
-            "normal_k": NORMAL_K,
+            "normal_cell_m": incidence::NORMAL_CELL_M,
+            "normal_window_cells": incidence::WINDOW_CELLS,
+            "normal_max_window_cells": incidence::MAX_WINDOW_CELLS,
+            "normal_min_points": incidence::MIN_WINDOW_POINTS,
             "min_cos_incidence": MIN_COS_INCIDENCE,
+            "radiometry_cell_m": radiometry::CELL_M,
+            "radiometry_min_points": radiometry::MIN_POINTS,
+            "radiometry_min_cos": radiometry::MIN_COS_FIT,
+            "radiometry_max_slope_std_err_db_per_m": radiometry::MAX_SLOPE_STD_ERR_DB_PER_M,
+            "radiometry_max_slope_db_per_m": radiometry::MAX_SLOPE_DB_PER_M,
+            "radiometry_max_offset_db": radiometry::MAX_OFFSET_DB,
         })
     }
 

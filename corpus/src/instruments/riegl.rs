@@ -26,6 +26,12 @@ use crate::terrain::{GridShape, TrueMarker};
 
 /// Longest range considered, metres.
 const MAX_RANGE_M: f64 = 40.0;
+/// The simulated instrument's residual range dependence of `Reflectance[dB]`: a real scanner's
+/// amplitude calibration is never exact, so the same surface reads darker from farther away.
+/// Recorded in the truth so a compiler's cross-scan calibration can be checked against it.
+pub const REFLECTANCE_RANGE_SLOPE_DB_PER_M: f64 = -0.05;
+/// Standard deviation of the simulated reflectance noise, dB.
+pub const REFLECTANCE_NOISE_DB: f64 = 0.3;
 
 /// A simulated scan in its own frame.
 #[derive(Debug, Clone)]
@@ -101,7 +107,7 @@ pub fn simulate(setup: &ScanSetup<'_>, spec: &ScannerSpec) -> Scan {
     let columns = ((spec.phi_deg[1] - spec.phi_deg[0]) / step).floor() as usize + 1;
     let rows = ((spec.theta_deg[1] - spec.theta_deg[0]) / step + 1e-9).floor() as usize + 1;
     let noise = Normal::new(0.0, setup.range_noise_m.max(0.0)).ok();
-    let refl_noise = Normal::new(0.0, 0.3).ok();
+    let refl_noise = Normal::new(0.0, REFLECTANCE_NOISE_DB).ok();
     let shape = GridShape::of(
         setup.albedo.origin_m,
         setup.albedo.cell_m,
@@ -126,7 +132,8 @@ pub fn simulate(setup: &ScanSetup<'_>, spec: &ScannerSpec) -> Scan {
                 let cos_i =
                     -(dg[0] * hit.normal[0] + dg[1] * hit.normal[1] + dg[2] * hit.normal[2]);
                 let a = shape.bilinear(&setup.albedo.value, hit.point[0], hit.point[1]);
-                let db = 10.0 * (a * cos_i.max(0.02)).max(1e-3).log10() - 0.05 * hit.t
+                let db = 10.0 * (a * cos_i.max(0.02)).max(1e-3).log10()
+                    + REFLECTANCE_RANGE_SLOPE_DB_PER_M * hit.t
                     + refl_noise.map_or(0.0, |n| n.sample(&mut rng));
                 pts.push([d[0] * range, d[1] * range, d[2] * range]);
                 refl.push(db as f32);
