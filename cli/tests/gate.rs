@@ -55,6 +55,15 @@ fn a_coarse_raster_fails_its_certificate_and_blocks_publishing() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // The human summary says how the scans' reflectance was cross-calibrated (mini: two
+    // stations at similar ranges, so offsets only).
+    let summary = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        summary.contains(
+            "laser                    reflectance cross-calibration: range slope not determined"
+        ),
+        "{summary}"
+    );
 
     let fine = validate(&db, "laser/0.01");
     let coarse = validate(&db, "laser/0.05");

@@ -95,6 +95,31 @@ pub fn run(
             d["triangles"]
         );
     }
+    for t in summary.registration.as_array().into_iter().flatten() {
+        let r = &t["radiometry"];
+        if let (Some(slope), Some(before), Some(after)) = (
+            r["range_slope_db_per_m"].as_f64(),
+            r["disagreement_before_db"].as_f64(),
+            r["disagreement_after_db"].as_f64(),
+        ) {
+            let offset = r["scan_offsets_db"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|o| o["offset_db"].as_f64())
+                .fold(0.0, |m: f64, v| m.max(v.abs()));
+            let slope = if r["slope_fitted"] == true {
+                format!("range slope {slope:+.3} dB/m")
+            } else {
+                "range slope not determined by the overlaps".to_string()
+            };
+            println!(
+                "  {:<24} reflectance cross-calibration: {slope}, scan offsets ≤ {offset:.2} dB, scans agree {before:.2} → {after:.2} dB RMS{}",
+                t["terrain"].as_str().unwrap_or(""),
+                if r["applied"] == true { "" } else { " (implausible: not applied)" }
+            );
+        }
+    }
     for w in &summary.warnings {
         println!("  warning: {}", w["message"].as_str().unwrap_or(""));
     }
