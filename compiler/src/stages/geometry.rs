@@ -7,7 +7,7 @@
 //!   share one audited implementation; `with_scale = false` gives the rigid fit.
 //! - Neighbourhoods use kiddo's `ImmutableKdTree` (balanced, no panic on coincident points,
 //!   unlike the mutable tree whose buckets overflow when many points share one coordinate).
-//! - [`KnnIndex`] is the exact kNN of `merge.clean`'s full-resolution passes (19 M points): a
+//! - [`KnnIndex`] is the exact kNN of `merge.clean`'s full-resolution outlier pass (19 M points): a
 //!   balanced kd-tree (median split on the axis of largest extent, leaves of at most 16 points,
 //!   built level by level in parallel) whose coordinates are stored in leaf order, queried in
 //!   leaf order (consecutive queries touch the same memory) into a caller-owned sorted buffer
@@ -17,8 +17,9 @@
 //!   exact ties may differ from kiddo's (which follows its traversal). Pruning compares the
 //!   squared box distance, rounded in the same order, with `≤`, so no tie is lost. On the
 //!   full-resolution estec campaign it answers k = 9 and k = 16 in about a fifth of kiddo's time.
-//! - Every reduction is sequential over a `Vec` collected from an indexed parallel map, so sums do
-//!   not depend on the rayon thread count (house style practice 11).
+//! - Every reduction is sequential over a `Vec` collected from an indexed parallel map, or (for
+//!   per-cell sums, [`bin_sums`]) over fixed-size chunks merged in chunk order, so sums do not
+//!   depend on the rayon thread count (house style practice 11).
 
 use std::collections::HashMap;
 use std::hash::Hash;

@@ -177,11 +177,10 @@ pub fn window_normals(points: &[[f64; 3]]) -> Vec<Option<Vector3<f64>>> {
         let c = cell(p);
         Some((c, Moments::of(local(p, c))))
     });
-    let mut keys: Vec<(i64, i64)> = cells.keys().copied().collect();
-    keys.sort_unstable();
-    let normals: HashMap<(i64, i64), Vector3<f64>> = keys
+    // Each cell's normal is a pure function of the binned moments: no order to fix.
+    let normals: HashMap<(i64, i64), Vector3<f64>> = cells
         .par_iter()
-        .filter_map(|&(cx, cy)| window_normal(&cells, cx, cy).map(|n| ((cx, cy), n)))
+        .filter_map(|(&(cx, cy), _)| window_normal(&cells, cx, cy).map(|n| ((cx, cy), n)))
         .collect();
     points
         .par_iter()

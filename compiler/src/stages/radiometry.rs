@@ -162,9 +162,7 @@ pub fn fit(
     if n_scans < 2 {
         return Err(NotFitted::OneScan);
     }
-    let pairs = pairs(&cells(points, scan, albedo, rho, origins), n_scans);
-    let cells_seen = pairs.1;
-    let pairs = pairs.0;
+    let (pairs, cells_seen) = pairs(&cells(points, scan, albedo, rho, origins), n_scans);
     let needed = MIN_PAIRS_PER_UNKNOWN * (n_scans + 1);
     if pairs.len() < needed {
         return Err(NotFitted::TooFewPairs {
