@@ -91,7 +91,8 @@ pub enum Command {
         #[arg(long)]
         detector: Vec<String>,
         /// JSON file overriding thresholds (`epsilon_px`, `min_mean_ratio_to_ceiling`,
-        /// `min_ratio_to_ceiling`, `min_repeatability`, `max_photometric_rms`,
+        /// `min_ratio_to_ceiling` (one number, or per detector `{"fast": 0.2}`),
+        /// `min_repeatability`, `max_photometric_rms`,
         /// `min_high_band_log_ratio`; defaults and their calibration: validator/src/validate.rs).
         #[arg(long)]
         thresholds: Option<PathBuf>,
@@ -100,6 +101,22 @@ pub enum Command {
         /// keypoint counts and spectra per view, and a summary per entry.
         #[arg(long, value_name = "DIR")]
         report: Option<PathBuf>,
+    },
+    /// Write a deliberately degraded copy of a terrain entry (its texture blurred) into a child
+    /// release: a negative control that `validate` must fail, for checking and calibrating the
+    /// gate on your own campaign.
+    Control {
+        /// The database folder.
+        db: PathBuf,
+        /// The release (default: latest).
+        #[arg(long, default_value = "latest")]
+        release: String,
+        /// The heightfield entry to copy, e.g. `laser/0.01` (it must have a texture).
+        #[arg(long)]
+        entry: String,
+        /// Gaussian blur of the texture, σ in metres on the ground.
+        #[arg(long, value_name = "SIGMA_M")]
+        texture_blur_m: f64,
     },
     /// Find where simulation and measurement disagree for one entry, name the missing effects
     /// (vignetting, blur, noise, gamma, exposure, shadows, distortion, pose-bias), fit them and

@@ -1,7 +1,8 @@
 //! The release gate end to end on a corpus campaign: the finest laser entry earns a passing
-//! certificate, a deliberately coarse 0.05 m raster fails it with the metric and shortfall named,
-//! `release --publish` refuses while it fails, the entries rank as their data predicts, and hidden
-//! sensor effects move the metrics the way the effect predicts (blur, noise).
+//! certificate, a deliberately coarse 0.05 m raster and a negative control with a blurred texture
+//! (`regolith control`) fail it with the metric and shortfall named, `release --publish` refuses
+//! while they fail, the entries rank as their data predicts, and hidden sensor effects move the
+//! metrics the way the effect predicts (blur, noise).
 //! Seed 7 is one of the eight campaigns the default thresholds were calibrated on (see
 //! `tools/calibrate/validate_thresholds.py` and `Thresholds`), run with a two-raster laser
 //! terrain: the test pins that the gate keeps behaving on it as calibrated.
@@ -13,7 +14,19 @@ use common::{certificate, regolith};
 use serde_json::Value;
 
 fn validate(db: &str, entry: &str) -> Value {
-    let out = regolith(&["--json", "validate", db, "--entry", entry]);
+    validate_in(db, "latest", entry)
+}
+
+fn validate_in(db: &str, release: &str, entry: &str) -> Value {
+    let out = regolith(&[
+        "--json",
+        "validate",
+        db,
+        "--release",
+        release,
+        "--entry",
+        entry,
+    ]);
     assert!(
         matches!(out.status.code(), Some(0 | 1)),
         "{}",
@@ -28,7 +41,7 @@ fn validate(db: &str, entry: &str) -> Value {
 }
 
 #[test]
-fn a_coarse_raster_fails_its_certificate_and_blocks_publishing() {
+fn degraded_entries_fail_their_certificates_and_block_publishing() {
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
     let (camp_s, db) = (
@@ -76,14 +89,77 @@ fn a_coarse_raster_fails_its_certificate_and_blocks_publishing() {
         "{failures}"
     );
 
+    // The negative control: laser/0.01 with its texture blurred by σ = 2 cm, in a child
+    // release; same geometry, so only the texture's fine detail is lost.
+    let out = regolith(&[
+        "--json",
+        "control",
+        &db,
+        "--entry",
+        "laser/0.01",
+        "--texture-blur-m",
+        "0.02",
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ctl: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(ctl["entry"], "laser/0.01-blur20mm", "{ctl}");
+    assert_eq!(ctl["parent"], "gate@1.0.0", "{ctl}");
+    let control_release = ctl["release"].as_str().unwrap().to_string();
+    let blurred = validate_in(&db, &control_release, "laser/0.01-blur20mm");
+    assert_eq!(blurred["passed"], false, "{blurred}");
+    let failures = blurred["failures"].to_string();
+    assert!(
+        failures.contains("fast: repeatability over chance") && failures.contains("short by"),
+        "{failures}"
+    );
+    // Writing the same control again reuses the child release.
+    let again = regolith(&[
+        "--json",
+        "control",
+        &db,
+        "--release",
+        "gate@1.0.0",
+        "--entry",
+        "laser/0.01",
+        "--texture-blur-m",
+        "0.02",
+    ]);
+    let again: Value = serde_json::from_slice(&again.stdout).unwrap();
+    assert_eq!(again["id"], ctl["id"]);
+    // A control of something that is not a textured heightfield, or with a blur out of range,
+    // is a clear error (exit 2) and writes nothing.
+    for (entry, sigma, expected) in [
+        ("captures", "0.02", "expected a heightfield"),
+        ("laser/0.01", "0", "must be in (0, 1] m"),
+        ("laser/0.01", "NaN", "must be in (0, 1] m"),
+    ] {
+        let out = regolith(&[
+            "control",
+            &db,
+            "--entry",
+            entry,
+            &format!("--texture-blur-m={sigma}"),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(expected), "{err}");
+    }
+
     // The entries rank as their data predicts: finer laser geometry keeps more of the real
-    // image's fine detail than the coarse raster and the SfM mesh, and more of its keypoints
-    // than the coarse raster (both held on all 8 calibration seeds; the keypoint ranking of
-    // laser/0.01 over sfm/0.02 held on 6 of 8 only, so it is not asserted).
-    let (cf, cc, cs) = (
+    // image's fine detail than the coarse raster and the SfM mesh, and the corner detectors
+    // re-find more of the real keypoints (over chance, relative to the ceiling) in the finest
+    // laser raster than in the coarse raster, the SfM raster and the blurred control (all held
+    // on the 8 calibration seeds).
+    let (cf, cc, cs, cb) = (
         certificate(&db, &fine),
         certificate(&db, &coarse),
         certificate(&db, &sfm),
+        certificate(&db, &blurred),
     );
     let band = |c: &Value| c["high_band_log_ratio"].as_f64().unwrap();
     let ratio = |c: &Value| c["mean_ratio_to_ceiling"]["mean"].as_f64().unwrap();
@@ -94,7 +170,19 @@ fn a_coarse_raster_fails_its_certificate_and_blocks_publishing() {
         band(&cc)
     );
     assert!(band(&cf) > band(&cs), "{} vs {}", band(&cf), band(&cs));
+    assert!(band(&cf) > band(&cb), "{} vs {}", band(&cf), band(&cb));
     assert!(ratio(&cf) > ratio(&cc), "{} vs {}", ratio(&cf), ratio(&cc));
+    for d in ["fast", "harris"] {
+        let r = |c: &Value| c["summary"][d]["ratio"]["mean"].as_f64().unwrap();
+        for (other, name) in [(&cc, "laser/0.05"), (&cs, "sfm/0.02"), (&cb, "blurred")] {
+            assert!(
+                r(&cf) > 1.5 * r(other),
+                "{d}: laser/0.01 {} vs {name} {}",
+                r(&cf),
+                r(other)
+            );
+        }
+    }
 
     // The gate: publishing is refused while laser/0.05 fails, naming the metric.
     let out = regolith(&["release", &db, "gate@1.0.0", "--publish"]);
@@ -104,6 +192,10 @@ fn a_coarse_raster_fails_its_certificate_and_blocks_publishing() {
         text.contains("laser/0.05") && text.contains("fine detail"),
         "{text}"
     );
+    let out = regolith(&["release", &db, &control_release, "--publish"]);
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("laser/0.01-blur20mm"), "{text}");
 }
 
 /// Compiles a mini seed-7 campaign with `hidden` effects and returns laser/0.01's certificate.

@@ -2,8 +2,10 @@
 """Calibrate `regolith validate`'s default thresholds on corpus campaigns (stdlib only).
 
 For each seed: generate a `mini` campaign with no hidden effect, add a deliberately degraded
-0.05 m laser raster to its terrain list, compile, validate every terrain entry, and print per
-entry the figures the certificate gates on. The defaults in validator/src/validate.rs
+0.05 m laser raster to its terrain list, compile, validate every terrain entry and a negative
+control (`regolith control`: laser/0.01 with its texture blurred by σ = 2 cm), and print per
+entry the figures the certificate gates on (ratio of the repeatability over chance to the
+real-vs-real ceiling per detector, with the chance part of the render's one-directional ratio). The defaults in validator/src/validate.rs
 (`Thresholds::default`) are set between the good entries and the degraded one; the figures of
 the last calibration are quoted there.
 
@@ -46,14 +48,21 @@ def main():
             (camp / "campaign.toml").write_text(toml)
             run([a.bin, "compile", camp, "--db", db, "--release", f"mini{seed}@1.0.0"])
         out = json.loads(run([a.bin, "--json", "validate", db]))
+        # The negative control: the finest laser raster with its texture blurred by σ = 2 cm.
+        ctl = json.loads(run([a.bin, "--json", "control", db, "--release", f"mini{seed}@1.0.0",
+                              "--entry", "laser/0.01", "--texture-blur-m", "0.02"]))
+        out["entries"] += json.loads(run([a.bin, "--json", "validate", db, "--release", ctl["release"],
+                                          "--entry", ctl["entry"]]))["entries"]
         for e in out["entries"]:
             c = certificate(db, e)
             ratios = {k: v["ratio"]["mean"] for k, v in c["summary"].items() if v.get("ratio")}
+            chance = {k: v["chance"]["mean"] for k, v in c["summary"].items()}
             ph = c["photometric"]
             rows.append({
                 "seed": seed,
                 "entry": e["entry"],
                 "ratios": ratios,
+                "chance": chance,
                 "mean_ratio": sum(ratios.values()) / max(len(ratios), 1),
                 "rms": sum(p[2]["rms"] for p in ph) / len(ph),
                 "high_band_log_ratio": sum(c["spectrum_log_ratio"][4:]) / 4,
@@ -61,7 +70,7 @@ def main():
             })
             r = rows[-1]
             print(f"seed {seed:3d} {r['entry']:12s} mean ratio {r['mean_ratio']:.3f} "
-                  + " ".join(f"{k} {v:.3f}" for k, v in sorted(ratios.items()))
+                  + " ".join(f"{k} {v:.3f} (chance {chance[k]:.3f})" for k, v in sorted(ratios.items()))
                   + f"  rms {r['rms']:.1f}  high-band log ratio {r['high_band_log_ratio']:+.2f}"
                   + f"  {'pass' if r['passed'] else 'fail'}", flush=True)
     (a.out / "calibration.json").write_text(json.dumps(rows, indent=1))

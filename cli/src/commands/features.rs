@@ -108,7 +108,7 @@ pub fn run(action: &FeaturesAction, json: bool) -> anyhow::Result<Outcome> {
             let (bw, bh) = (b.width as f64, b.height as f64);
             let inside =
                 |p: [f64; 2]| p[0] >= -0.5 && p[1] >= -0.5 && p[0] < bw - 0.5 && p[1] < bh - 0.5;
-            let curve = repeatability(&pa, &pb, map, inside, &EPSILONS);
+            let curve = repeatability(&pa, &pb, map, inside, bw * bh, &EPSILONS);
             if json {
                 print_json(
                     &serde_json::json!({"detector": d, "keypoints": [pa.len(), pb.len()], "repeatability": curve}),
@@ -122,8 +122,8 @@ pub fn run(action: &FeaturesAction, json: bool) -> anyhow::Result<Outcome> {
                 );
                 for r in &curve {
                     println!(
-                        "  ε {:>3.1} px: repeatability {:.3} ({} repeated of min({}, {}))",
-                        r.epsilon_px, r.score, r.repeated, r.n_a, r.n_b
+                        "  ε {:>3.1} px: repeatability {:.3} ({} repeated of min({}, {})), one-directional {:.3}, over chance {:.3} (chance {:.3})",
+                        r.epsilon_px, r.score, r.repeated, r.n_a, r.n_b, r.one_directional, r.excess, r.chance
                     );
                 }
             }

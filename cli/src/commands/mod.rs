@@ -1,6 +1,7 @@
 //! One module per subcommand; each returns an [`Outcome`] or an error (exit 2).
 
 mod compile;
+mod control;
 mod corpus;
 mod demo;
 mod export;
@@ -30,6 +31,12 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             profile,
         } => export::run(db, release, entry, to, *profile, cli.json),
         Command::Gc { db } => gc::run(db, cli.json),
+        Command::Control {
+            db,
+            release,
+            entry,
+            texture_blur_m,
+        } => control::run(db, release, entry, *texture_blur_m, cli.json),
         Command::Gap {
             db,
             release,

@@ -83,7 +83,10 @@ pub fn run(
                 let ratio = s.ratio.map_or("   -  ".to_string(), |r| {
                     format!("{:.3} [{:.3}, {:.3}]", r.mean, r.low, r.high)
                 });
-                println!("  {d:<7} repeatability {:.3}  ceiling {ceiling}  ratio {ratio}  one-directional {:.3}", s.sim.mean, s.one_directional.mean);
+                println!(
+                    "  {d:<7} re-detected over chance {:.3}  ceiling {ceiling}  ratio {ratio}  one-directional {:.3} (chance {:.3})  ÷min(n) {:.3}",
+                    s.sim.mean, s.one_directional.mean, s.chance.mean, s.score.mean
+                );
             }
             for f in &cert.failures {
                 println!("  failed: {f}");

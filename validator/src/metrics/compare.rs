@@ -42,7 +42,7 @@ pub struct DetectorComparison {
     /// Point repeatability real → render over the ε curve.
     pub sim: Vec<Repeatability>,
     /// Point repeatability real a → real b at the certified ε.
-    pub ceiling: Option<f64>,
+    pub ceiling: Option<Repeatability>,
     /// `(real, render)` index pairs repeated at the certified ε (for overlays).
     pub repeated: Vec<(usize, usize)>,
     /// MSER only: region repeatability real → render and real a → real b (overlap error).
@@ -115,12 +115,14 @@ pub struct ViewImages<'a> {
 
 /// Runs detector `d` on the view's real frame a, render and real frame b (when present) and
 /// measures: point repeatability over `curve` (which contains `eps`), the ceiling at `eps`, and
-/// the detector-specific metrics. `seen(p)` says whether pixel `p` shows terrain in the render.
+/// the detector-specific metrics. `seen(p)` says whether pixel `p` shows terrain in the render,
+/// and `seen_px` is how many pixels do (the area of the chance correction).
 pub fn compare(
     images: ViewImages<'_>,
     d: Detector,
     params: &DetectorParams,
     seen: impl Fn([f64; 2]) -> bool,
+    seen_px: f64,
     curve: &[f64],
     eps: f64,
 ) -> DetectorComparison {
@@ -128,10 +130,10 @@ pub fn compare(
     let s = detect(images.render, d, params);
     let b = images.real_b.map(|img| detect(img, d, params));
     let (pa, ps) = (points(&a.kps), points(&s.kps));
-    let sim = repeatability(&pa, &ps, Some, &seen, curve);
+    let sim = repeatability(&pa, &ps, Some, &seen, seen_px, curve);
     let ceiling = b
         .as_ref()
-        .map(|b| repeatability(&pa, &points(&b.kps), Some, &seen, &[eps])[0].score);
+        .map(|b| repeatability(&pa, &points(&b.kps), Some, &seen, seen_px, &[eps])[0]);
     let repeated = repeated_pairs(&pa, &ps, Some, &seen, eps);
     let regions = (d == Detector::Mser).then(|| {
         let rp = RegionParams::default();

@@ -5,6 +5,14 @@
 //! the region both images see count. Points are paired one-to-one, greedily by increasing
 //! distance, so one keypoint is never credited twice; a pair within ε pixels is a repeat.
 //! Repeatability = repeats / min(n_A, n_B) over the common region.
+//!
+//! Both that score and the thesis's one-directional ratio (repeats / n_A) grow with B's keypoint
+//! density by chance alone: a render covered in speckle corners "re-detects" many real corners
+//! that it does not see. [`Repeatability::excess`] removes the chance part, taking B's keypoints as
+//! spread uniformly over the common region: an A keypoint finds one within ε by chance with
+//! probability `p = 1 − exp(−n_B π ε² / area)`, and `excess = (one_directional − p) / (1 − p)`
+//! (Cohen's kappa form: 0 = no better than chance, 1 = every A keypoint re-detected). It neither
+//! rewards a render with few keypoints (as min(n) does) nor one with many.
 
 use serde::Serialize;
 
@@ -23,6 +31,30 @@ pub struct Repeatability {
     pub score: f64,
     /// `repeated / n_a`: the thesis's one-directional ratio (A re-detected in B).
     pub one_directional: f64,
+    /// Probability that an A keypoint has a B keypoint within ε by chance, B's keypoints spread
+    /// uniformly over the common region: `1 − exp(−n_b π ε² / area)`.
+    pub chance: f64,
+    /// The one-directional ratio with chance repeats removed: `(one_directional − chance) /
+    /// (1 − chance)`; 0 when A is empty or chance is 1. Negative when below chance.
+    pub excess: f64,
+}
+
+/// The chance probability `1 − exp(−n_b π ε² / area)` of [`Repeatability::chance`] (0 for an
+/// empty region).
+pub fn chance_probability(n_b: usize, epsilon_px: f64, area_px: f64) -> f64 {
+    if area_px <= 0.0 {
+        return 0.0;
+    }
+    1.0 - (-(n_b as f64) * std::f64::consts::PI * epsilon_px * epsilon_px / area_px).exp()
+}
+
+/// `(one_directional − chance) / (1 − chance)`, 0 when `n_a` is 0 or chance is (numerically) 1.
+pub fn excess_over_chance(one_directional: f64, chance: f64, n_a: usize) -> f64 {
+    if n_a == 0 || chance >= 1.0 - 1e-12 {
+        0.0
+    } else {
+        (one_directional - chance) / (1.0 - chance)
+    }
 }
 
 /// Pairs points one-to-one greedily by distance, returning `(distance, index in a, index in b)`
@@ -94,12 +126,14 @@ pub(super) fn fraction(num: usize, den: usize) -> f64 {
 }
 
 /// Repeatability of `a` (mapped by `map_a_to_b`, `None` = not visible in B) against `b`, at
-/// every ε of `epsilons`. `in_common(x, y)` says whether a B pixel is seen by both images.
+/// every ε of `epsilons`. `in_common(x, y)` says whether a B pixel is seen by both images, and
+/// `area_px` is the size of that common region in B pixels (for the chance correction).
 pub fn repeatability(
     a: &[[f64; 2]],
     b: &[[f64; 2]],
     map_a_to_b: impl Fn([f64; 2]) -> Option<[f64; 2]>,
     in_common: impl Fn([f64; 2]) -> bool,
+    area_px: f64,
     epsilons: &[f64],
 ) -> Vec<Repeatability> {
     let (a_mapped, b_in) = common_points(a, b, map_a_to_b, in_common);
@@ -117,13 +151,17 @@ pub fn repeatability(
                 greedy_pairs(&a_mapped, &b_in, eps).len()
             };
             let (n_a, n_b) = (a_mapped.len(), b_in.len());
+            let one_directional = fraction(repeated, n_a);
+            let chance = chance_probability(n_b, eps, area_px);
             Repeatability {
                 epsilon_px: eps,
                 n_a,
                 n_b,
                 repeated,
                 score: fraction(repeated, n_a.min(n_b)),
-                one_directional: fraction(repeated, n_a),
+                one_directional,
+                chance,
+                excess: excess_over_chance(one_directional, chance, n_a),
             }
         })
         .collect()
@@ -191,7 +229,7 @@ mod tests {
             [100.0, 100.0],
             [10.0, 11.0],
         ];
-        let r = repeatability(&a, &b, Some, |_| true, &EPSILONS);
+        let r = repeatability(&a, &b, Some, |_| true, 200.0 * 200.0, &EPSILONS);
         let at = |e: f64| r.iter().find(|x| (x.epsilon_px - e).abs() < 1e-9).unwrap();
         // ε = 1: only (10,10)-(10.5,10); the (10,11) point is the second-closest to the same A.
         assert_eq!(at(1.0).repeated, 1);
@@ -219,13 +257,66 @@ mod tests {
             &b,
             |p| Some([p[0] + 2.0, p[1]]),
             |p| p[0] < 100.0,
+            100.0 * 20.0,
             &[1.0],
         );
         assert_eq!((r[0].n_a, r[0].n_b, r[0].repeated), (1, 1, 1));
         assert_eq!(r[0].score, 1.0);
         let pairs = repeated_pairs(&a, &b, |p| Some([p[0] + 2.0, p[1]]), |p| p[0] < 100.0, 1.0);
         assert_eq!(pairs, vec![(0, 0)]);
-        let none = repeatability(&a, &[], Some, |_| true, &[1.5]);
+        let none = repeatability(&a, &[], Some, |_| true, 1e4, &[1.5]);
         assert_eq!(none[0].score, 0.0);
+        assert_eq!((none[0].chance, none[0].excess), (0.0, 0.0));
+    }
+
+    /// Fixed test vector for the chance correction: the fixed vector's 5 B points in a region of
+    /// `5 π 1.5² / ln 2` px make a chance repeat exactly as likely as not, so its one-directional
+    /// ratio 2/4 at ε = 1.5 is no better than chance.
+    #[test]
+    fn chance_correction_fixed_vector() {
+        let a = [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]];
+        let b = [
+            [10.5, 10.0],
+            [21.2, 20.0],
+            [30.0, 33.0],
+            [100.0, 100.0],
+            [10.0, 11.0],
+        ];
+        let area = 5.0 * std::f64::consts::PI * 2.25 / std::f64::consts::LN_2;
+        let r = repeatability(&a, &b, Some, |_| true, area, &[1.5, 3.0]);
+        assert!((r[0].chance - 0.5).abs() < 1e-12, "{}", r[0].chance);
+        assert!(r[0].excess.abs() < 1e-12, "{}", r[0].excess);
+        // ε = 3: chance 1 − 2^−4 = 0.9375, 3 of 4 repeated → (0.75 − 0.9375) / 0.0625 = −3.
+        assert!((r[1].chance - 0.9375).abs() < 1e-12);
+        assert!((r[1].excess + 3.0).abs() < 1e-9, "{}", r[1].excess);
+    }
+
+    /// Unrelated uniform point sets repeat only by chance: the one-directional ratio grows with
+    /// B's density, the excess stays at 0; a B that contains A's points gets an excess near 1.
+    #[test]
+    fn unrelated_points_have_no_excess_at_any_density() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 1000.0
+        };
+        let a: Vec<[f64; 2]> = (0..3000).map(|_| [next(), next()]).collect();
+        for n_b in [2000, 20_000, 60_000] {
+            let b: Vec<[f64; 2]> = (0..n_b).map(|_| [next(), next()]).collect();
+            let r = repeatability(&a, &b, Some, |_| true, 1e6, &[1.5])[0];
+            assert!(
+                r.excess.abs() < 0.03,
+                "n_b {n_b}: one-directional {} chance {} excess {}",
+                r.one_directional,
+                r.chance,
+                r.excess
+            );
+            let mut with_a = b.clone();
+            with_a.extend(a.iter().map(|p| [p[0] + 0.3, p[1]]));
+            let r = repeatability(&a, &with_a, Some, |_| true, 1e6, &[1.5])[0];
+            assert!(r.excess > 0.97, "n_b {n_b}: excess {}", r.excess);
+        }
     }
 }

@@ -331,7 +331,7 @@ impl Raster {
 }
 
 /// PNG with pinned settings, so the same pixels give the same bytes.
-fn encode_png(
+pub(crate) fn encode_png(
     width: u32,
     height: u32,
     colour: ::png::ColorType,
