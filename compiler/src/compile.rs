@@ -214,6 +214,21 @@ fn dem_row(name: &str, r: &Raster) -> Value {
         "points": r.stats.points, "triangles": r.stats.triangles, "stats": r.stats})
 }
 
+/// What a laser terrain leaves for the rest of the compile: its registration report, the merged
+/// points (the SfM alignment target) and its rasters (for `drape_on`).
+struct LaserTerrain {
+    report: Value,
+    points: Vec<[f64; 3]>,
+    rasters: Vec<Raster>,
+}
+
+/// The laser data a reconstruction terrain uses: the merged points it is aligned to, and the
+/// rasters of the laser terrains some reconstruction drapes its colours on, by terrain name.
+struct LaserData<'a> {
+    points: &'a [[f64; 3]],
+    rasters: &'a BTreeMap<String, Vec<Raster>>,
+}
+
 fn laser_terrain(
     ctx: &mut Ctx<'_>,
     c: &Campaign,
@@ -222,7 +237,7 @@ fn laser_terrain(
     markers: &[NamedPoint],
     opts: &CompileOptions,
     dem_out: &mut Vec<Value>,
-) -> Result<(Value, Vec<[f64; 3]>), CompileError> {
+) -> Result<LaserTerrain, CompileError> {
     let mut clouds: Vec<(String, PointCloud, ScanTiepoints)> = Vec::new();
     for &i in scans {
         let Some(s) = c.scans.get(i) else { continue };
@@ -325,7 +340,11 @@ fn laser_terrain(
         "merge": merged.stats,
         "radiometry": merged.radiometry,
     });
-    Ok((report, merged.points))
+    Ok(LaserTerrain {
+        report,
+        points: merged.points,
+        rasters,
+    })
 }
 
 /// A reconstruction terrain: similarity-align the SfM mesh onto the merged laser cloud, then
@@ -335,7 +354,7 @@ fn sfm_terrain(
     c: &Campaign,
     t: &Terrain,
     recons: &[usize],
-    laser: &[[f64; 3]],
+    laser: &LaserData<'_>,
     opts: &CompileOptions,
     dem_out: &mut Vec<Value>,
 ) -> Result<Value, CompileError> {
@@ -347,7 +366,7 @@ fn sfm_terrain(
         if let Align::Gcp(p) = &r.align {
             return Err(StageError::new(AlignSfm::NAME, format!("reconstruction {:?}: control-point files ({}) are not read by this compiler version; use align = \"laser\"", r.name, p.display())).into());
         }
-        if laser.is_empty() {
+        if laser.points.is_empty() {
             return Err(StageError::new(
                 AlignSfm::NAME,
                 format!(
@@ -364,7 +383,7 @@ fn sfm_terrain(
             &ctx.cx,
             &AlignInput {
                 mesh: mesh.clone(),
-                laser: laser.to_vec(),
+                laser: laser.points.to_vec(),
                 control: Vec::new(),
             },
         )?;
@@ -416,6 +435,9 @@ fn sfm_terrain(
             )?;
             dem_out.push(dem_row(&name, &ras));
         }
+        if let Some(target) = &t.drape_on {
+            drape(ctx, t, target, &tin, laser.rasters, opts)?;
+        }
         ctx.lap("encode.terrain");
         reports.insert(
             r.name.clone(),
@@ -427,6 +449,70 @@ fn sfm_terrain(
         );
     }
     Ok(Value::Object(reports))
+}
+
+/// `sfm-on-laser`: the reconstruction's vertex colours on the laser geometry, the combination
+/// the thesis recommended (laser heights are the more accurate, SfM colours the more faithful
+/// albedo). Per raster step of the reconstruction terrain, the aligned reconstruction is
+/// rasterised on exactly the laser raster's grid (its bounds and cell), and the laser raster is
+/// encoded with that albedo as entry `<terrain>-on-<laser>/<cell>`: its height objects are the
+/// laser entry's (same bytes, stored once), its texture and mesh carry the SfM colours.
+fn drape(
+    ctx: &mut Ctx<'_>,
+    t: &Terrain,
+    target: &str,
+    tin: &Tin,
+    laser_rasters: &BTreeMap<String, Vec<Raster>>,
+    opts: &CompileOptions,
+) -> Result<(), CompileError> {
+    let err = |m: String| -> CompileError { StageError::new(DemRaster::NAME, m).into() };
+    let rasters = laser_rasters.get(target).ok_or_else(|| {
+        err(format!(
+            "terrain {:?}: drape_on {target:?} was not built",
+            t.name
+        ))
+    })?;
+    for &cell in &t.raster_m {
+        let laser = rasters.iter().find(|r| r.cell_m == cell).ok_or_else(|| {
+            err(format!(
+                "terrain {target:?} has no {cell} m raster to drape on"
+            ))
+        })?;
+        let on_grid = DemRaster::new(
+            vec![cell],
+            Some(laser.bounds),
+            MaxEdge::SpacingFactor(4.0),
+            -0.1,
+            1 << 28,
+        )?
+        .with_regression(Some(DEM_REGRESSION_SPACINGS))
+        .rasterize_all(tin)?
+        .pop()
+        .ok_or_else(|| err("no raster".into()))?;
+        if (on_grid.rows, on_grid.cols, on_grid.origin) != (laser.rows, laser.cols, laser.origin) {
+            return Err(err(format!(
+                "the draped grid {}x{} differs from the laser grid {}x{}",
+                on_grid.cols, on_grid.rows, laser.cols, laser.rows
+            )));
+        }
+        let draped = Raster {
+            albedo: on_grid.albedo,
+            ..laser.clone()
+        };
+        let name = format!("{}-on-{target}/{}", t.name, cell_label(cell));
+        let source = format!("{}-on-{target}", t.name);
+        let texture = albedo_png(&draped)?;
+        encode_raster(
+            ctx,
+            &name,
+            &source,
+            &draped,
+            texture,
+            "sfm-on-laser",
+            opts.lods,
+        )?;
+    }
+    Ok(())
 }
 
 fn encode_raster(
@@ -586,6 +672,8 @@ pub fn compile(
     let mut dem = Vec::new();
     let n_terrains = c.terrains.len().max(1) as f64;
     let mut laser_points: Vec<[f64; 3]> = Vec::new();
+    // Laser rasters some reconstruction terrain drapes its colours on (`drape_on`).
+    let mut laser_rasters: BTreeMap<String, Vec<Raster>> = BTreeMap::new();
     let mut alignment = serde_json::Map::new();
     let mut order: Vec<&Terrain> = c.terrains.iter().collect();
     order.sort_by_key(|t| matches!(t.from, TerrainSource::Reconstructions(_)));
@@ -596,17 +684,31 @@ pub fn compile(
         );
         match &t.from {
             TerrainSource::Scans(idx) => {
-                let (report, points) =
-                    laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?;
-                registration.push(report);
+                let out = laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?;
+                registration.push(out.report);
+                if c.terrains
+                    .iter()
+                    .any(|o| o.drape_on.as_deref() == Some(t.name.as_str()))
+                {
+                    laser_rasters.insert(t.name.clone(), out.rasters);
+                }
                 if laser_points.is_empty() {
-                    laser_points = points;
+                    laser_points = out.points;
                 }
             }
             TerrainSource::Reconstructions(idx) => {
-                if let Value::Object(m) =
-                    sfm_terrain(&mut ctx, c, t, idx, &laser_points, opts, &mut dem)?
-                {
+                if let Value::Object(m) = sfm_terrain(
+                    &mut ctx,
+                    c,
+                    t,
+                    idx,
+                    &LaserData {
+                        points: &laser_points,
+                        rasters: &laser_rasters,
+                    },
+                    opts,
+                    &mut dem,
+                )? {
                     alignment.extend(m);
                 }
             }

@@ -603,7 +603,7 @@ fn temp_campaign(toml: &Path) -> tempfile::TempDir {
 
 #[test]
 fn bad_campaigns_name_file_and_problem() {
-    let cases: [(&str, &[&str]); 7] = [
+    let cases: [(&str, &[&str]); 10] = [
         (
             "unknown_key",
             &["line 14", "unknown key `nmae`: did you mean `name`?"],
@@ -623,6 +623,24 @@ fn bad_campaigns_name_file_and_problem() {
         ("unknown_terrain_source", &["\"pos2\" names no [[scan]]"]),
         ("zero_raster", &["raster_m[0] must be a positive number"]),
         ("empty", &["line 1", "missing field `schema`"]),
+        (
+            "drape_on_scans",
+            &[
+                "[[terrain]] \"laser\"",
+                "drape_on is for reconstruction terrains",
+            ],
+        ),
+        (
+            "drape_unknown",
+            &["drape_on = \"lazer\"", "names no laser (scans) terrain"],
+        ),
+        (
+            "drape_missing_step",
+            &[
+                "[[terrain]] \"sfm\"",
+                "the laser terrain has no raster_m 0.015",
+            ],
+        ),
     ];
     for (name, parts) in cases {
         let dir = temp_campaign(&data(&format!("campaign/bad/{name}.toml")));

@@ -169,6 +169,9 @@ pub struct TerrainToml {
     pub texture: String,
     /// `[xmin, ymin, xmax, ymax]` crop in the ground frame.
     pub bounds_m: Option<[f64; 4]>,
+    /// Reconstruction terrains: also drape the vertex colours on this laser terrain's geometry.
+    #[serde(default)]
+    pub drape_on: Option<String>,
 }
 
 /// The resolved, validated campaign. Paths are relative to [`Campaign::root`].
@@ -342,6 +345,10 @@ pub struct Terrain {
     pub texture: Texture,
     /// Optional crop.
     pub bounds_m: Option<[f64; 4]>,
+    /// A reconstruction terrain's colours are also draped on this laser terrain's rasters
+    /// (`sfm-on-laser` entries `<name>-on-<laser>/<cell>`, one per raster step of this terrain;
+    /// the laser terrain has every one of them).
+    pub drape_on: Option<String>,
 }
 
 /// Parses `campaign.toml` text into the low structs.
@@ -520,6 +527,7 @@ pub fn resolve(low: &CampaignToml, root: &Path) -> Result<Campaign> {
         .iter()
         .map(|t| resolve_terrain(t, &scans, &reconstructions))
         .collect::<Result<Vec<_>>>()?;
+    check_drapes(&terrains)?;
     Ok(Campaign {
         root: root.to_path_buf(),
         name: low.name.clone(),
@@ -740,13 +748,38 @@ fn resolve_terrain(t: &TerrainToml, scans: &[Scan], recs: &[Reconstruction]) -> 
             )));
         }
     }
+    if t.drape_on.is_some() && !matches!(from, TerrainSource::Reconstructions(_)) {
+        return Err(bad(format!(
+            "{what}: drape_on is for reconstruction terrains (it drapes their colours on a laser terrain)"
+        )));
+    }
     Ok(Terrain {
         name: t.name.clone(),
         from,
         raster_m: t.raster_m.clone(),
         texture,
         bounds_m: t.bounds_m,
+        drape_on: t.drape_on.clone(),
     })
+}
+
+/// Every `drape_on` names a laser terrain that has each of the draping terrain's raster steps.
+fn check_drapes(terrains: &[Terrain]) -> Result<()> {
+    for t in terrains {
+        let Some(target) = &t.drape_on else { continue };
+        let what = format!("[[terrain]] {:?}: drape_on = {target:?}", t.name);
+        let laser = terrains
+            .iter()
+            .find(|l| l.name == *target && matches!(l.from, TerrainSource::Scans(_)))
+            .ok_or_else(|| bad(format!("{what} names no laser (scans) terrain")))?;
+        if let Some(r) = t.raster_m.iter().find(|r| !laser.raster_m.contains(r)) {
+            return Err(bad(format!(
+                "{what}: the laser terrain has no raster_m {r} (it has {:?}); the colours are draped on the laser raster of the same step",
+                laser.raster_m
+            )));
+        }
+    }
+    Ok(())
 }
 
 impl Campaign {
