@@ -82,6 +82,7 @@ fn mesh_entry_renders_like_its_heightfield_and_is_certified() {
         distort: true,
         shadows: true,
         supersample: 1,
+        filter_textures: true,
     };
     let (mut both, mut only_hf, mut only_mesh) = (0usize, 0usize, 0usize);
     let (mut sum_abs, mut depth_err): (f64, Vec<f64>) = (0.0, Vec::new());

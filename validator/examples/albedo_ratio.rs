@@ -34,6 +34,7 @@ fn main() {
                 distort: true,
                 shadows: false,
                 supersample: 2,
+                filter_textures: true,
             },
         );
         let real = decode_grey_png(&img.data, 32_768).unwrap();

@@ -164,6 +164,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
                 distort: true,
                 shadows: false,
                 supersample: 1,
+                filter_textures: true,
             },
         ),
         (
@@ -172,6 +173,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
                 distort: false,
                 shadows: false,
                 supersample: 1,
+                filter_textures: true,
             },
         ),
         (
@@ -180,6 +182,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
                 distort: true,
                 shadows: true,
                 supersample: 1,
+                filter_textures: true,
             },
         ),
     ] {
@@ -262,6 +265,7 @@ fn export_peer(dir: &std::path::Path, g: &Geometry) -> std::io::Result<()> {
             distort: false,
             shadows: false,
             supersample: 1,
+            filter_textures: true,
         },
     );
     let bytes = |xs: &[f32]| xs.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();

@@ -151,6 +151,7 @@ const PLAIN: RenderOptions = RenderOptions {
     distort: false,
     shadows: false,
     supersample: 1,
+    filter_textures: true,
 };
 
 #[test]

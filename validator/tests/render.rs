@@ -6,14 +6,15 @@
 
 use regolith_format::camera_model::{CameraModel, Distortion};
 use regolith_validator::render::{
-    render, AlbedoGrid, Geometry, HeightGrid, HeightfieldTracer, Light, RenderOptions, Rendered,
-    Scene, TriMeshF32, View,
+    render, AlbedoGrid, Geometry, HeightGrid, HeightfieldTracer, Light, MeshTexture, RenderOptions,
+    Rendered, Scene, TriMeshF32, View,
 };
 
 const PLAIN: RenderOptions = RenderOptions {
     distort: false,
     shadows: false,
     supersample: 1,
+    filter_textures: true,
 };
 
 fn grid(w: usize, h: usize, cell: f64, f: impl Fn(f64, f64) -> f64) -> HeightGrid {
@@ -261,6 +262,7 @@ fn marker_lands_where_camera_model_projects_it_with_real_distortion() {
         distort: true,
         shadows: false,
         supersample: 3,
+        filter_textures: true,
     };
     let r = render(&g, &light(0.0, 90.0, 1.0), &view, &opts);
     let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
@@ -440,6 +442,7 @@ fn output_is_identical_for_one_and_two_threads() {
         distort: true,
         shadows: true,
         supersample: 2,
+        filter_textures: true,
     };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -486,6 +489,7 @@ fn cached_camera_rays_give_the_bytes_of_a_fresh_scene() {
         distort: true,
         shadows: false,
         supersample: n,
+        filter_textures: true,
     };
     let bits = |r: &Rendered| -> Vec<u32> {
         r.radiance
@@ -551,7 +555,13 @@ fn supersampling_box_filters_an_albedo_edge() {
         "edge pixel {}",
         four.radiance[row + 50]
     );
-    assert!(one.radiance[row + 50] < 1e-6 || one.radiance[row + 50] > 1.0 - 1e-6);
+    // One sample per 0.02 m pixel spans 4 texels: it reads the mip level that averages them,
+    // the same 0.625 as the 4 x 4 box filter (without mip-mapping it read 0 or 1).
+    assert!(
+        (one.radiance[row + 50] - 0.625).abs() < 1e-4,
+        "one-sample edge pixel {}",
+        one.radiance[row + 50]
+    );
     let bits = |v: &[f32]| v.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
     assert_eq!(
         bits(&one.depth),
@@ -607,4 +617,81 @@ fn tracer_hits_planes_from_above_and_below_and_respects_holes() {
         .is_some());
     fn is_sync<T: Sync + Send>(_: &T) {}
     is_sync(&holed);
+}
+
+/// Mean and standard deviation of the radiance over the pixels that see terrain.
+fn mean_std(r: &Rendered) -> (f64, f64) {
+    let v: Vec<f64> = r
+        .radiance
+        .iter()
+        .zip(&r.mask)
+        .filter(|(_, m)| **m == 255)
+        .map(|(x, _)| f64::from(*x))
+        .collect();
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    (
+        mean,
+        (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt(),
+    )
+}
+
+#[test]
+fn a_distant_fine_texture_is_filtered_not_aliased() {
+    // A 1-texel checkerboard (albedo 0 / 1 on 5 mm texels) seen from 4 m with 4 cm pixels and
+    // one sample per pixel: each sample spans 8 texels. Point sampling would give every pixel 0
+    // or 1 (standard deviation ~0.5); the mip levels give the local mean, 0.5.
+    let n = 800;
+    let checker = |x: f64, y: f64| {
+        let (c, r) = ((x / 0.005).round() as i64, (-y / 0.005).round() as i64);
+        if (c + r) % 2 == 0 {
+            0.0
+        } else {
+            1.0
+        }
+    };
+    let g = Geometry::Heightfield {
+        grid: grid(201, 201, 0.02, |_, _| 0.0),
+        albedo: albedo(n, n, 0.005, checker),
+    };
+    let view = View::look_at(
+        CameraModel::pinhole(61, 61, 100.0, 100.0, 30.0, 30.0),
+        [2.0, -2.0, 4.0],
+        [2.0, -2.0, 0.0],
+    );
+    let l = light(0.0, 90.0, 1.0);
+    let (mean, std) = mean_std(&render(&g, &l, &view, &PLAIN));
+    assert!(
+        (mean - 0.5).abs() < 0.02 && std < 0.02,
+        "heightfield: mean {mean} std {std}"
+    );
+
+    // The same texture on a textured mesh (two triangles, uv 0..1 over the 4 m square).
+    let side = (n - 1) as f32 * 0.005;
+    let h = -(side);
+    let tex = MeshTexture {
+        uvs: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]],
+        width: n,
+        height: n,
+        value: (0..n * n)
+            .map(|i| checker((i % n) as f64 * 0.005, -((i / n) as f64) * 0.005) as f32)
+            .collect(),
+    };
+    let mesh = Geometry::Mesh(TriMeshF32 {
+        origin_m: [0.0; 3],
+        positions: vec![
+            [0.0, 0.0, 0.0],
+            [side, 0.0, 0.0],
+            [0.0, h, 0.0],
+            [side, h, 0.0],
+        ],
+        triangles: vec![[0, 1, 3], [0, 2, 3]],
+        albedo: vec![0.0; 4],
+        texture: Some(tex),
+    });
+    let (mean, std) = mean_std(&render(&mesh, &l, &view, &PLAIN));
+    assert!(
+        (mean - 0.5).abs() < 0.02 && std < 0.02,
+        "mesh: mean {mean} std {std}"
+    );
 }

@@ -212,6 +212,10 @@ pub fn render_frames(
         distort: true,
         shadows: false,
         supersample,
+        // The corpus camera point-samples the true albedo: the corpus campaigns, and every
+        // threshold and tolerance calibrated on them, were made this way (format of the corpus
+        // v1); an integrating camera is a corpus version change.
+        filter_textures: false,
     });
     let mut images: Vec<Vec<u8>> = Vec::new();
     for (i, (cam, pose)) in cameras.iter().zip([left_pose, right_pose]).enumerate() {

@@ -33,6 +33,9 @@ struct Tri {
     /// Texture coordinates of the three vertices, when the mesh has a texture and all three
     /// are finite.
     uv: Option<[[f64; 2]; 3]>,
+    /// Ground size of one texel on this triangle, metres (`sqrt(area / texel area)`; 0 when
+    /// the triangle has no texture coordinates or a degenerate mapping).
+    texel_m: f64,
     normal: [f64; 3],
 }
 
@@ -41,6 +44,7 @@ struct Image {
     width: usize,
     height: usize,
     value: Vec<f32>,
+    mips: super::shading::MipChain,
 }
 
 struct Node {
@@ -87,14 +91,26 @@ impl MeshTracer {
                 continue;
             }
             let normal = [n[0] / len, n[1] / len, n[2] / len];
+            let uv = match (uv(t[0]), uv(t[1]), uv(t[2])) {
+                (Some(p), Some(q), Some(r)) => Some([p, q, r]),
+                _ => None,
+            };
+            // Texel area of the triangle: its uv area times the image's texel count.
+            let texels = uv.zip(mesh.texture.as_ref()).map_or(0.0, |(uv, tex)| {
+                let (du1, dv1) = (uv[1][0] - uv[0][0], uv[1][1] - uv[0][1]);
+                let (du2, dv2) = (uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]);
+                0.5 * (du1 * dv2 - du2 * dv1).abs() * (tex.width * tex.height) as f64
+            });
             tris.push(Tri {
                 v0: a,
                 e1,
                 e2,
                 albedo: [albedo(t[0]), albedo(t[1]), albedo(t[2])],
-                uv: match (uv(t[0]), uv(t[1]), uv(t[2])) {
-                    (Some(p), Some(q), Some(r)) => Some([p, q, r]),
-                    _ => None,
+                uv,
+                texel_m: if texels > 0.0 {
+                    (0.5 * len / texels).sqrt()
+                } else {
+                    0.0
                 },
                 normal,
             });
@@ -108,6 +124,7 @@ impl MeshTracer {
                 width: t.width,
                 height: t.height,
                 value: t.value.clone(),
+                mips: super::shading::MipChain::new(t.width, t.height, &t.value),
             }),
         };
         tracer.build(tris);
@@ -211,7 +228,7 @@ impl MeshTracer {
 
     /// The nearest intersection with `0 <= t <= t_max`, if any.
     pub fn trace(&self, origin: [f64; 3], dir: [f64; 3], t_max: f64) -> Option<Hit> {
-        self.trace_albedo(origin, dir, t_max).map(|h| h.0)
+        self.trace_albedo(origin, dir, t_max, 0.0).map(|h| h.0)
     }
 
     /// Whether anything is hit with `0 <= t <= t_max`.
@@ -221,12 +238,15 @@ impl MeshTracer {
     }
 
     /// The nearest intersection and the albedo there: the texture sample at the interpolated
-    /// texture coordinates for a textured triangle, else the interpolated vertex albedo.
+    /// texture coordinates for a textured triangle (filtered over the footprint of a ray sample
+    /// `spread` wide in normalised image coordinates, see [`super::shading::MipChain`]), else the
+    /// interpolated vertex albedo.
     pub(crate) fn trace_albedo(
         &self,
         origin: [f64; 3],
         dir: [f64; 3],
         t_max: f64,
+        spread: f64,
     ) -> Option<(Hit, f32)> {
         let (t, ti, bu, bv) = self.walk(sub(origin, self.origin), dir, t_max, false)?;
         let tri = self.tris.get(ti)?;
@@ -247,7 +267,19 @@ impl MeshTracer {
                     w0 * uv[0][0] + bu * uv[1][0] + bv * uv[2][0],
                     w0 * uv[0][1] + bu * uv[1][1] + bv * uv[2][1],
                 );
-                sample_image(img.width, img.height, &img.value, u, v)
+                let texels = if tri.texel_m > 0.0 {
+                    super::shading::footprint_m(t, dir, tri.normal, spread) / tri.texel_m
+                } else {
+                    0.0
+                };
+                img.mips.sample(
+                    img.width,
+                    img.height,
+                    &img.value,
+                    u * img.width as f64 - 0.5,
+                    v * img.height as f64 - 0.5,
+                    texels,
+                )
             }
             _ => {
                 let a = tri.albedo;

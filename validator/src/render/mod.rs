@@ -11,6 +11,14 @@
 //!   see [`heightfield`]; every quad between four cell centres is split along its NW–SE diagonal
 //!   into two planar triangles, the same split as the compiler's glTF meshes. **Meshes** are
 //!   traced through a bounding-volume hierarchy ([`mesh`]) and shaded with per-face normals.
+//! * **Texture filtering**: a ray sample whose footprint on the surface spans more than one
+//!   texel reads the texture's box-filtered mip levels, trilinearly at `log2(footprint)`
+//!   (`shading::MipChain`; the footprint is the side of the square with the area of the
+//!   sample's footprint ellipse, from the hit distance, the sample spacing and the incidence).
+//!   A point-sampled fine texture seen from afar aliases into noise; a magnified one (the usual
+//!   case for rover cameras over a terrain texture) is sampled bilinearly exactly as without.
+//!   Heightfield albedo and mesh textures filter alike (a mesh triangle's texel size comes from
+//!   its uv and world areas), so a heightfield and its mesh still render alike.
 //! * **Shading** is Lambertian with an ambient share (see [`shading`]):
 //!   `radiance = albedo * (ambient + (1 - ambient) * max(0, n·l) * visible)`, where `visible`
 //!   is 0 when a shadow ray toward the light hits the terrain (only with `shadows: true`).
@@ -185,6 +193,10 @@ pub struct RenderOptions {
     pub shadows: bool,
     /// 1 = one sample at each pixel centre; `n` = `n x n` stratified samples, box-filtered.
     pub supersample: u32,
+    /// Filter textures over each sample's footprint (mip levels, trilinear) where a sample
+    /// spans more than one texel; `false` point-samples them bilinearly (magnified textures
+    /// are sampled the same way either way).
+    pub filter_textures: bool,
 }
 
 impl Default for RenderOptions {
@@ -193,6 +205,7 @@ impl Default for RenderOptions {
             distort: true,
             shadows: false,
             supersample: 1,
+            filter_textures: true,
         }
     }
 }
@@ -228,6 +241,7 @@ pub(crate) enum SceneKind<'a> {
     Heightfield {
         tracer: HeightfieldTracer,
         albedo: &'a AlbedoGrid,
+        mips: shading::MipChain,
     },
     Mesh {
         tracer: MeshTracer,
@@ -241,6 +255,7 @@ impl<'a> Scene<'a> {
             Geometry::Heightfield { grid, albedo } => SceneKind::Heightfield {
                 tracer: HeightfieldTracer::new(grid),
                 albedo,
+                mips: shading::MipChain::new(albedo.width, albedo.height, &albedo.value),
             },
             Geometry::Mesh(m) => SceneKind::Mesh {
                 tracer: MeshTracer::new(m),

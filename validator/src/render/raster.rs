@@ -14,7 +14,7 @@
 use rayon::prelude::*;
 use regolith_format::camera_model::CameraModel;
 
-use super::shading::{light_direction, sample_albedo, shade};
+use super::shading::{footprint_m, light_direction, sample_albedo_filtered, shade};
 use super::{Hit, Light, RenderOptions, Rendered, Scene, SceneKind, View};
 
 /// Shadow-ray start offset along the normal: heightfields, in cells.
@@ -62,9 +62,15 @@ pub(crate) fn render_scene(
         }
     };
 
+    // Neighbouring samples' spacing in normalised image coordinates (for texture filtering).
+    let spread = if opts.filter_textures {
+        2.0 / ((cam.fx.abs() + cam.fy.abs()) * f64::from(n))
+    } else {
+        0.0
+    };
     let sample = |x: f64, y: f64| -> Sample {
         let d = std::array::from_fn(|k| rot[k][0] * x + rot[k][1] * y + rot[k][2]);
-        let Some((hit, albedo, eps)) = trace(scene, centre, d) else {
+        let Some((hit, albedo, eps)) = trace(scene, centre, d, spread) else {
             return Sample {
                 radiance: 0.0,
                 depth: None,
@@ -194,16 +200,22 @@ impl RayTable {
     }
 }
 
-/// The nearest hit, its albedo and the shadow-ray offset to use there.
-fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3]) -> Option<(Hit, f32, f64)> {
+/// The nearest hit, its albedo (filtered over the footprint of a sample `spread` wide in
+/// normalised image coordinates) and the shadow-ray offset to use there.
+fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hit, f32, f64)> {
     match &scene.kind {
-        SceneKind::Heightfield { tracer, albedo } => {
+        SceneKind::Heightfield {
+            tracer,
+            albedo,
+            mips,
+        } => {
             let hit = tracer.trace(o, d, f64::INFINITY)?;
-            let a = sample_albedo(albedo, hit.point[0], hit.point[1]);
+            let foot = footprint_m(hit.t, d, hit.normal, spread);
+            let a = sample_albedo_filtered(albedo, mips, hit.point[0], hit.point[1], foot);
             Some((hit, a, tracer.cell_m() * HF_SHADOW_EPS_CELLS))
         }
         SceneKind::Mesh { tracer } => {
-            let (hit, a) = tracer.trace_albedo(o, d, f64::INFINITY)?;
+            let (hit, a) = tracer.trace_albedo(o, d, f64::INFINITY, spread)?;
             Some((hit, a, tracer.extent() * MESH_SHADOW_EPS))
         }
     }

@@ -224,6 +224,7 @@ impl SensorModel {
             distort: true,
             shadows: false,
             supersample,
+            filter_textures: true,
         });
         let light = match shadow_light {
             Some(l) => Light {
