@@ -1,7 +1,9 @@
 //! Shared helpers of the end-to-end tests: [`sample`] builds a small release with one entry of
 //! every kind, deterministically, through the real encoders and the real writer. The test vectors
 //! in `format-spec/test-vectors/` are this release, and the crash, corruption and CLI tests use it.
+//! [`albedo_truth`] compares an entry's texture with a corpus campaign's true albedo.
 
+pub mod albedo_truth;
 pub mod sample;
 
 /// The workspace root (for finding `format-spec/`, `../shared/` and the binaries).

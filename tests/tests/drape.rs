@@ -11,61 +11,15 @@ use std::path::Path;
 use regolith_compiler::compile::{compile, options};
 use regolith_compiler::ingest::campaign;
 use regolith_corpus::{generate, GenerateOptions, Preset};
-use regolith_reader::heightfield::decode_grey_png;
 use regolith_reader::{Database, ReleaseView, Writer};
+use regolith_tests::albedo_truth;
 use serde_json::Value;
 
-/// RMS difference between an entry's texture and the true albedo (nearest truth cell) over the
-/// entry's measured cells.
+/// RMS difference between an entry's texture and the true albedo over its measured cells.
 fn texture_vs_truth(view: &ReleaseView, entry: &str, camp: &Path) -> f64 {
-    let hf = view.heightfield(entry).unwrap();
-    let tex = decode_grey_png(
-        &view
-            .read_file(&format!("{entry}/texture"), "image")
-            .unwrap(),
-        32_768,
-    )
-    .unwrap();
-    let scale = if tex.bit_depth == 16 { 65535.0 } else { 255.0 };
-    let meta: Value =
-        serde_json::from_slice(&std::fs::read(camp.join("truth/height.json")).unwrap()).unwrap();
-    let truth = decode_grey_png(
-        &std::fs::read(camp.join("truth/albedo.png")).unwrap(),
-        32_768,
-    )
-    .unwrap();
-    let origin = [
-        meta["origin_m"][0].as_f64().unwrap(),
-        meta["origin_m"][1].as_f64().unwrap(),
-    ];
-    let cell = meta["cell_m"].as_f64().unwrap();
-    let m = &hf.meta;
-    let (mut sq, mut n) = (0.0, 0usize);
-    for row in 0..m.height as usize {
-        for col in 0..m.width as usize {
-            let i = row * m.width as usize + col;
-            if hf.valid[i] != 255 {
-                continue;
-            }
-            let x = m.origin_m[0] + col as f64 * m.cell_m;
-            let y = m.origin_m[1] - row as f64 * m.cell_m;
-            let (tc, tr) = (
-                ((x - origin[0]) / cell).round(),
-                ((origin[1] - y) / cell).round(),
-            );
-            if tc < 0.0 || tr < 0.0 || tc >= f64::from(truth.width) || tr >= f64::from(truth.height)
-            {
-                continue;
-            }
-            let t = f64::from(truth.samples[tr as usize * truth.width as usize + tc as usize])
-                / 65535.0;
-            let e = f64::from(tex.samples[i]) / scale;
-            sq += (e - t) * (e - t);
-            n += 1;
-        }
-    }
-    assert!(n > 1000, "{entry}: {n} cells");
-    (sq / n as f64).sqrt()
+    let t = albedo_truth::texture_vs_truth(view, entry, camp).unwrap();
+    assert!(t.cells > 1000, "{entry}: {} cells", t.cells);
+    t.rms
 }
 
 #[test]

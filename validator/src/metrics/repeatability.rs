@@ -218,17 +218,20 @@ pub const EPSILONS: [f64; 6] = [1.0, 1.5, 2.0, 3.0, 4.0, 5.0];
 mod tests {
     use super::*;
 
+    /// The fixed test vector: 4 points in A, 5 in B, at known distances.
+    const FIXED_A: [[f64; 2]; 4] = [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]];
+    const FIXED_B: [[f64; 2]; 5] = [
+        [10.5, 10.0],
+        [21.2, 20.0],
+        [30.0, 33.0],
+        [100.0, 100.0],
+        [10.0, 11.0],
+    ];
+
     /// Fixed test vector: 4 points in A, 5 in B; known distances.
     #[test]
     fn fixed_vector() {
-        let a = [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]];
-        let b = [
-            [10.5, 10.0],
-            [21.2, 20.0],
-            [30.0, 33.0],
-            [100.0, 100.0],
-            [10.0, 11.0],
-        ];
+        let (a, b) = (FIXED_A, FIXED_B);
         let r = repeatability(&a, &b, Some, |_| true, 200.0 * 200.0, &EPSILONS);
         let at = |e: f64| r.iter().find(|x| (x.epsilon_px - e).abs() < 1e-9).unwrap();
         // ε = 1: only (10,10)-(10.5,10); the (10,11) point is the second-closest to the same A.
@@ -274,14 +277,7 @@ mod tests {
     /// ratio 2/4 at ε = 1.5 is no better than chance.
     #[test]
     fn chance_correction_fixed_vector() {
-        let a = [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 40.0]];
-        let b = [
-            [10.5, 10.0],
-            [21.2, 20.0],
-            [30.0, 33.0],
-            [100.0, 100.0],
-            [10.0, 11.0],
-        ];
+        let (a, b) = (FIXED_A, FIXED_B);
         let area = 5.0 * std::f64::consts::PI * 2.25 / std::f64::consts::LN_2;
         let r = repeatability(&a, &b, Some, |_| true, area, &[1.5, 3.0]);
         assert!((r[0].chance - 0.5).abs() < 1e-12, "{}", r[0].chance);
