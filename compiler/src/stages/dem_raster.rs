@@ -517,7 +517,7 @@ fn surface_stats(r: &mut Raster) {
 
 impl Stage for DemRaster {
     const NAME: &'static str = "dem.raster";
-    const VERSION: u32 = 2;
+    const VERSION: u32 = 3;
     const DESCRIPTION: &'static str =
         "Rasterise the TIN into north-up height and albedo grids; long-edge triangles become nodata; \
          optionally estimate cells by local regression over the TIN vertices";
