@@ -17,6 +17,7 @@ use regolith_format::ObjectId;
 use regolith_reader::{ReaderError, ReleaseView, Writer};
 use serde_json::json;
 
+use crate::child::commit_child;
 use crate::report::plot::encode_png;
 use crate::sensor::gaussian_blur;
 use crate::validate::grey;
@@ -92,7 +93,6 @@ pub fn blurred_texture(
 
     let name = control_name(entry, sigma_m);
     let mut m = view.manifest.clone();
-    m.parent = Some(view.id);
     let texture_name = format!("{name}/texture");
     m.entries
         .retain(|e| e.name != name && e.name != texture_name);
@@ -123,34 +123,9 @@ pub fn blurred_texture(
         version: TEXTURE_BLUR_VERSION,
         params: json!({"entry": entry, "control": name, "sigma_m": sigma_m, "sigma_px": sigma_px}),
     });
-    let db = writer.database();
-    let existing = db.releases()?;
-    // The same control already written as a child of this release: reuse it.
-    for (label, id) in &existing {
-        let child = db.release_by_id(id)?;
-        let same = child.manifest.parent == Some(view.id)
-            && child.manifest.entries.iter().any(|e| {
-                e.name == texture_name && e.file(roles::IMAGE).map(|f| f.object) == Some(object)
-            });
-        if same {
-            return Ok(Control {
-                entry: name,
-                release: label.clone(),
-                id: *id,
-                sigma_px,
-            });
-        }
-    }
-    let base = view.manifest.version.clone();
-    m.version = (1..)
-        .map(|n| format!("{base}+control.{n}"))
-        .find(|v| {
-            let label = format!("{}@{v}", m.name);
-            !existing.iter().any(|(l, _)| *l == label)
-        })
-        .unwrap_or(base);
-    let label = m.label();
-    let id = writer.commit(m, false)?;
+    let (label, id) = commit_child(writer, view, m, "control", false, |e| {
+        e.name == texture_name && e.file(roles::IMAGE).map(|f| f.object) == Some(object)
+    })?;
     Ok(Control {
         entry: name,
         release: label,

@@ -6,6 +6,7 @@
 //! with the gap workflow (which fits them). [`report`] draws an offline HTML report of a
 //! validation run (PNG figures, `regolith validate --report`).
 
+mod child;
 pub mod control;
 pub mod features;
 pub mod gap;
