@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use serde::{Deserialize, Serialize};
 
-use super::image::GreyF32;
+use super::image::{to_levels, GreyF32};
 use super::keypoint::Keypoint;
 
 /// FAST parameters; defaults are OpenCV's `FastFeatureDetector::create(10, true, TYPE_9_16)`
@@ -236,21 +236,6 @@ fn keep_row(rows: [&[u8]; 3], n: usize, y: usize, nonmax: bool, out: &mut Vec<Ke
     }
 }
 
-/// `round(255 v)` clamped to 0..=255, `NaN` → 0, exactly as `image::to_level` but written so
-/// that it vectorises (the saturating `as` casts do not).
-fn to_levels(src: &[f32], dst: &mut [u8]) {
-    const MAGIC: f32 = 8_388_608.0; // 2^23: adding it rounds [0, 2^23) to an integer.
-    for (d, &v) in dst.iter_mut().zip(src) {
-        let x = v * 255.0 + 0.5;
-        let x = if x > 0.0 { x } else { 0.0 }; // NaN → 0
-        let x = if x < 255.0 { x } else { 255.0 };
-        // The low mantissa bits of `y` hold x rounded to nearest; truncation is one less when
-        // that rounded up.
-        let y = x + MAGIC;
-        *d = (y.to_bits() - u32::from(y - MAGIC > x)) as u8;
-    }
-}
-
 /// FAST-9 corners (see the module docs); `response` is the score in 8-bit levels.
 pub fn detect_fast(img: &GreyF32, p: &FastParams) -> Vec<Keypoint> {
     if img.is_degenerate() || img.width < 7 || img.height < 7 {
@@ -395,29 +380,5 @@ mod tests {
             found > 10_000,
             "only {found} keypoints: the test exercises too little"
         );
-    }
-
-    #[test]
-    fn levels_match_to_level() {
-        let mut v: Vec<f32> = (0..=255).map(|l| l as f32 / 255.0).collect();
-        // Every half-level tie and its float neighbours, plus values outside [0, 1].
-        for k in 0..=512 {
-            let x = (k as f32 - 0.5) / 255.0;
-            v.extend([x, x.next_down(), x.next_up()]);
-        }
-        v.extend([
-            f32::NAN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            -0.0,
-            -1e-30,
-            1e30,
-            2.0,
-        ]);
-        let mut got = vec![0u8; v.len()];
-        to_levels(&v, &mut got);
-        for (x, g) in v.iter().zip(&got) {
-            assert_eq!(*g, to_level(*x), "{x:e}");
-        }
     }
 }
