@@ -146,6 +146,38 @@ pub fn gaussian_kernel_n(n: usize, sigma: f64) -> Vec<f32> {
     w.iter().map(|v| (v / s) as f32).collect()
 }
 
+/// One row filtered horizontally with reflect-101 borders, `out[x] = Σ_k kx[k]·src[x + k − r]`,
+/// accumulated tap by tap from zero. Every filter here uses this order, so a pixel's value does
+/// not depend on which function computed it. `padded` is scratch reused between rows.
+pub fn filter_row(src: &[f32], kx: &[f32], padded: &mut Vec<f32>, out: &mut [f32]) {
+    let w = src.len();
+    let rx = kx.len() / 2;
+    padded.clear();
+    padded.extend((0..w + 2 * rx).map(|i| {
+        src.get(reflect101(i as isize - rx as isize, w))
+            .copied()
+            .unwrap_or(0.0)
+    }));
+    out.fill(0.0);
+    for (k, &c) in kx.iter().enumerate() {
+        let win = padded.get(k..k + w).unwrap_or(&[]);
+        for (o, s) in out.iter_mut().zip(win) {
+            *o += c * s;
+        }
+    }
+}
+
+/// `out[x] = Σ_j ky[j]·rows[j][x]`, accumulated tap by tap from zero (the vertical half of a
+/// separable filter; `rows` are the source rows under the taps, already reflected).
+pub fn combine_rows<'a>(rows: impl IntoIterator<Item = &'a [f32]>, ky: &[f32], out: &mut [f32]) {
+    out.fill(0.0);
+    for (&k, src) in ky.iter().zip(rows) {
+        for (o, s) in out.iter_mut().zip(src) {
+            *o += k * s;
+        }
+    }
+}
+
 /// Separable filtering with odd-length kernels per axis, reflect-101 borders. Both passes
 /// loop over taps outside and pixels inside so the inner loop is a vectorisable
 /// multiply-add over a whole row.
@@ -154,34 +186,20 @@ pub fn separable_filter(img: &GreyF32, kx: &[f32], ky: &[f32]) -> GreyF32 {
     if img.is_degenerate() {
         return img.clone();
     }
-    let rx = kx.len() / 2;
     let mut tmp = vec![0.0f32; w * h];
-    tmp.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        let src = img.row(y);
-        let padded: Vec<f32> = (0..w + 2 * rx)
-            .map(|i| {
-                src.get(reflect101(i as isize - rx as isize, w))
-                    .copied()
-                    .unwrap_or(0.0)
-            })
-            .collect();
-        for (k, &c) in kx.iter().enumerate() {
-            let win = padded.get(k..k + w).unwrap_or(&[]);
-            for (o, s) in out.iter_mut().zip(win) {
-                *o += c * s;
-            }
-        }
-    });
+    tmp.par_chunks_mut(w)
+        .enumerate()
+        .for_each_init(Vec::new, |padded, (y, out)| {
+            filter_row(img.row(y), kx, padded, out)
+        });
     let ry = ky.len() / 2;
     let mut data = vec![0.0f32; w * h];
     data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        for (j, &k) in ky.iter().enumerate() {
+        let rows = (0..ky.len()).map(|j| {
             let sy = reflect101(y as isize + j as isize - ry as isize, h);
-            let src = tmp.get(sy * w..(sy + 1) * w).unwrap_or(&[]);
-            for (o, s) in out.iter_mut().zip(src) {
-                *o += k * s;
-            }
-        }
+            tmp.get(sy * w..(sy + 1) * w).unwrap_or(&[])
+        });
+        combine_rows(rows, ky, out);
     });
     GreyF32 {
         width: w,
@@ -195,13 +213,6 @@ pub fn separable_filter(img: &GreyF32, kx: &[f32], ky: &[f32]) -> GreyF32 {
 pub fn gaussian_blur(img: &GreyF32, sigma: f64) -> GreyF32 {
     let k = gaussian_kernel(sigma);
     separable_filter(img, &k, &k)
-}
-
-/// 3×3 Sobel derivatives `(d/dx, d/dy)`, unnormalised (OpenCV `Sobel(.., 1, 0, 3)`).
-pub fn sobel(img: &GreyF32) -> (GreyF32, GreyF32) {
-    const D: [f32; 3] = [-1.0, 0.0, 1.0];
-    const S: [f32; 3] = [1.0, 2.0, 1.0];
-    (separable_filter(img, &D, &S), separable_filter(img, &S, &D))
 }
 
 /// Every second pixel in both directions: `dst(x, y) = src(2x, 2y)` (OpenCV `resize` with
