@@ -2,14 +2,15 @@
 //!
 //! ```text
 //! cargo run --release -p regolith-validator --example bench_features -- \
-//!     [--threads N] [--reps N] [--out DIR] [--params JSON] [IMAGE ...]
+//!     [--threads N] [--reps N] [--out DIR] [--params JSON] [--only DETECTOR] [IMAGE ...]
 //! ```
 //! Always runs the synthetic 1280×1024 scene (`features::synthetic::bench_scene`), then each
 //! image given (converted to 8-bit grey). With `--out DIR` it writes, per image `<stem>`, the
 //! exact grey input as `<stem>.png` (so OpenCV sees the same levels, whatever the JPEG decoder),
 //! `<stem>.<detector>.json` (our keypoints) and `timings.json`. Times are the median of
 //! `--reps` runs (default 5) on a rayon pool of `--threads` threads (default 1). `--params`
-//! takes a `DetectorParams` JSON object (missing fields keep their defaults).
+//! takes a `DetectorParams` JSON object (missing fields keep their defaults); `--only` times one
+//! detector (for profiling) and skips the descriptors.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::error::Error;
@@ -29,12 +30,14 @@ fn main() -> Result<(), Box<dyn Error>> {
     let mut args = std::env::args().skip(1);
     let (mut threads, mut reps, mut out, mut paths) = (1usize, 5usize, None::<PathBuf>, Vec::new());
     let mut params = DetectorParams::default();
+    let mut only: Option<Detector> = None;
     while let Some(a) = args.next() {
         match a.as_str() {
             "--threads" => threads = args.next().ok_or("--threads N")?.parse()?,
             "--reps" => reps = args.next().ok_or("--reps N")?.parse()?,
             "--out" => out = Some(PathBuf::from(args.next().ok_or("--out DIR")?)),
             "--params" => params = serde_json::from_str(&args.next().ok_or("--params JSON")?)?,
+            "--only" => only = Some(args.next().ok_or("--only DETECTOR")?.parse()?),
             _ => paths.push(PathBuf::from(a)),
         }
     }
@@ -69,7 +72,10 @@ fn main() -> Result<(), Box<dyn Error>> {
                 image::ExtendedColorType::L8,
             )?;
         }
-        for d in Detector::ALL {
+        for d in Detector::ALL
+            .into_iter()
+            .filter(|d| only.is_none_or(|o| o == *d))
+        {
             let mut times = Vec::new();
             let mut kps = Vec::new();
             for _ in 0..reps.max(1) {
@@ -91,7 +97,10 @@ fn main() -> Result<(), Box<dyn Error>> {
                 )?;
             }
         }
-        for d in [Detector::Sift, Detector::Surf] {
+        for d in [Detector::Sift, Detector::Surf]
+            .into_iter()
+            .filter(|_| only.is_none())
+        {
             let kps = pool.install(|| features::detect(img, d, &params));
             let t = Instant::now();
             let desc = pool.install(|| features::describe(img, &kps, d));

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 
 #[cfg(doc)]
 use super::image::separable_filter;
-use super::image::{combine_rows, filter_row, reflect101, GreyF32};
+use super::image::{combine_rows, filter_row, reach, reflect101, GreyF32};
 use super::keypoint::{sort_keypoints, Keypoint};
 
 /// Harris parameters; the defaults are OpenCV's `GFTTDetector::create(1000, 0.01, 1, 3, false,
@@ -100,10 +100,11 @@ impl Rows {
     }
 }
 
-/// Smallest and largest row reached from rows `y0..y1` by the taps `-r..=r` (reflect-101).
-fn reach(y0: usize, y1: usize, r: usize, h: usize) -> (usize, usize) {
-    let rows = (y0 as isize - r as isize..y1 as isize + r as isize).map(|y| reflect101(y, h));
-    rows.fold((usize::MAX, 0), |(lo, hi), y| (lo.min(y), hi.max(y)))
+/// The rows of `plane` under the taps `-r..=r` centred on row `y` (reflect-101 in `h` rows).
+fn rows(plane: &Rows, y: usize, r: usize, h: usize) -> Vec<&[f32]> {
+    (0..2 * r + 1)
+        .map(|j| plane.row(reflect101(y as isize + j as isize - r as isize, h)))
+        .collect()
 }
 
 /// Response rows `y0..y0 + out.len() / w` into `out`.
@@ -122,15 +123,12 @@ fn response_band(img: &GreyF32, window: &[f32], k: f32, y0: usize, out: &mut [f3
         filter_row(img.row(y), &D, &mut padded, d);
         filter_row(img.row(y), &S, &mut padded, s);
     }
-    let taps = |y: usize, r: usize| {
-        (0..2 * r + 1).map(move |j| reflect101(y as isize + j as isize - r as isize, h))
-    };
     let mut boxed = [(); 3].map(|_| Rows::new(plo, phi, w));
     let (mut gx, mut gy) = (vec![0.0f32; w], vec![0.0f32; w]);
     let mut prod = [(); 3].map(|_| vec![0.0f32; w]);
     for y in plo..=phi {
-        combine_rows(taps(y, 1).map(|t| hd.row(t)), &S, &mut gx);
-        combine_rows(taps(y, 1).map(|t| hs.row(t)), &D, &mut gy);
+        combine_rows(&rows(&hd, y, 1, h), &S, &mut gx);
+        combine_rows(&rows(&hs, y, 1, h), &D, &mut gy);
         let [xx, xy, yy] = &mut prod;
         for (((&a, &b), (pxx, pxy)), pyy) in gx
             .iter()
@@ -152,7 +150,7 @@ fn response_band(img: &GreyF32, window: &[f32], k: f32, y0: usize, out: &mut [f3
     let mut sums = [(); 3].map(|_| vec![0.0f32; w]);
     for (y, row) in (y0..y1).zip(out.chunks_mut(w)) {
         for (sum, plane) in sums.iter_mut().zip(&boxed) {
-            combine_rows(taps(y, r).map(|t| plane.row(t)), window, sum);
+            combine_rows(&rows(plane, y, r, h), window, sum);
         }
         let [a, b, c] = &sums;
         for (((o, &a), &b), &c) in row.iter_mut().zip(a).zip(b).zip(c) {

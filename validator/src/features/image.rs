@@ -146,9 +146,15 @@ pub fn gaussian_kernel_n(n: usize, sigma: f64) -> Vec<f32> {
     w.iter().map(|v| (v / s) as f32).collect()
 }
 
-/// One row filtered horizontally with reflect-101 borders, `out[x] = Σ_k kx[k]·src[x + k − r]`,
-/// accumulated tap by tap from zero. Every filter here uses this order, so a pixel's value does
-/// not depend on which function computed it. `padded` is scratch reused between rows.
+/// True when `k[i] == k[n − 1 − i]` for every tap (Gaussians, boxes, Sobel's smoothing).
+fn is_symmetric(k: &[f32]) -> bool {
+    k.iter().zip(k.iter().rev()).all(|(a, b)| a == b)
+}
+
+/// One row filtered horizontally with reflect-101 borders, `out[x] = Σ_k kx[k]·src[x + k − r]`.
+/// A symmetric kernel adds mirrored samples before multiplying (`k_c·s_0 + Σ_i k_i·(s_−i +
+/// s_i)`, OpenCV's order, half the multiplies); any other kernel accumulates tap by tap from
+/// zero. `padded` is scratch reused between rows.
 pub fn filter_row(src: &[f32], kx: &[f32], padded: &mut Vec<f32>, out: &mut [f32]) {
     let w = src.len();
     let rx = kx.len() / 2;
@@ -158,49 +164,86 @@ pub fn filter_row(src: &[f32], kx: &[f32], padded: &mut Vec<f32>, out: &mut [f32
             .copied()
             .unwrap_or(0.0)
     }));
-    out.fill(0.0);
-    for (k, &c) in kx.iter().enumerate() {
-        let win = padded.get(k..k + w).unwrap_or(&[]);
-        for (o, s) in out.iter_mut().zip(win) {
-            *o += c * s;
-        }
-    }
+    let rows: Vec<&[f32]> = (0..kx.len())
+        .map(|k| padded.get(k..k + w).unwrap_or(&[]))
+        .collect();
+    combine_rows(&rows, kx, out);
 }
 
-/// `out[x] = Σ_j ky[j]·rows[j][x]`, accumulated tap by tap from zero (the vertical half of a
-/// separable filter; `rows` are the source rows under the taps, already reflected).
-pub fn combine_rows<'a>(rows: impl IntoIterator<Item = &'a [f32]>, ky: &[f32], out: &mut [f32]) {
+/// `out[x] = Σ_j ky[j]·rows[j][x]` in [`filter_row`]'s order (the vertical half of a separable
+/// filter; `rows` are the source rows under the taps, already reflected).
+pub fn combine_rows(rows: &[&[f32]], ky: &[f32], out: &mut [f32]) {
+    let r = ky.len() / 2;
+    if ky.len() % 2 == 1 && is_symmetric(ky) {
+        let (Some(&kc), Some(centre)) = (ky.get(r), rows.get(r)) else {
+            return;
+        };
+        for (o, s) in out.iter_mut().zip(*centre) {
+            *o = kc * s;
+        }
+        for i in 1..=r {
+            let (Some(&k), Some(lo), Some(hi)) = (ky.get(r + i), rows.get(r - i), rows.get(r + i))
+            else {
+                continue;
+            };
+            for ((o, a), b) in out.iter_mut().zip(*lo).zip(*hi) {
+                *o += k * (a + b);
+            }
+        }
+        return;
+    }
     out.fill(0.0);
     for (&k, src) in ky.iter().zip(rows) {
-        for (o, s) in out.iter_mut().zip(src) {
+        for (o, s) in out.iter_mut().zip(*src) {
             *o += k * s;
         }
     }
 }
 
-/// Separable filtering with odd-length kernels per axis, reflect-101 borders. Both passes
-/// loop over taps outside and pixels inside so the inner loop is a vectorisable
-/// multiply-add over a whole row.
+/// Smallest and largest row index reached from rows `y0..y1` by the taps `-r..=r` with
+/// reflect-101 borders in an image of `h` rows.
+pub fn reach(y0: usize, y1: usize, r: usize, h: usize) -> (usize, usize) {
+    let rows = (y0 as isize - r as isize..y1 as isize + r as isize).map(|y| reflect101(y, h));
+    rows.fold((usize::MAX, 0), |(lo, hi), y| (lo.min(y), hi.max(y)))
+}
+
+/// Separable filtering with odd-length kernels per axis, reflect-101 borders.
+///
+/// Works in bands of output rows: a band filters the source rows it reaches horizontally into
+/// its own scratch (reused from band to band, about 1 MB), then combines them vertically, so
+/// no full-size intermediate plane is allocated and the rows stay in cache. Each output row is
+/// the same arithmetic whatever the banding, so results are bit-identical on any thread count.
 pub fn separable_filter(img: &GreyF32, kx: &[f32], ky: &[f32]) -> GreyF32 {
     let (w, h) = (img.width, img.height);
     if img.is_degenerate() {
         return img.clone();
     }
-    let mut tmp = vec![0.0f32; w * h];
-    tmp.par_chunks_mut(w)
-        .enumerate()
-        .for_each_init(Vec::new, |padded, (y, out)| {
-            filter_row(img.row(y), kx, padded, out)
-        });
     let ry = ky.len() / 2;
+    // Rows recomputed at band edges (2·ry per band) stay below a quarter of the work.
+    let band = (8 * ry).max(64);
     let mut data = vec![0.0f32; w * h];
-    data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        let rows = (0..ky.len()).map(|j| {
-            let sy = reflect101(y as isize + j as isize - ry as isize, h);
-            tmp.get(sy * w..(sy + 1) * w).unwrap_or(&[])
-        });
-        combine_rows(rows, ky, out);
-    });
+    data.par_chunks_mut(band * w).enumerate().for_each_init(
+        || (Vec::new(), Vec::new()),
+        |(padded, tmp), (b, out)| {
+            let (y0, y1) = (b * band, b * band + out.len() / w);
+            let (lo, hi) = reach(y0, y1, ry, h);
+            tmp.clear();
+            tmp.resize((hi + 1 - lo) * w, 0.0);
+            for (i, row) in tmp.chunks_mut(w).enumerate() {
+                filter_row(img.row(lo + i), kx, padded, row);
+            }
+            let tmp: &[f32] = tmp;
+            for (y, o) in (y0..y1).zip(out.chunks_mut(w)) {
+                let rows: Vec<&[f32]> = (0..ky.len())
+                    .map(|j| {
+                        let sy = reflect101(y as isize + j as isize - ry as isize, h) - lo;
+                        tmp.get(sy * w..(sy + 1) * w).unwrap_or(&[])
+                    })
+                    .collect();
+                combine_rows(&rows, ky, o);
+            }
+        },
+    );
     GreyF32 {
         width: w,
         height: h,
