@@ -21,7 +21,7 @@ use regolith_reader::{ReaderError, Writer};
 use serde::Serialize;
 use serde_json::{json, Value};
 
-use crate::encode::{glb, heightfield, png, EncodeError};
+use crate::encode::{glb, heightfield, mesh_lod, png, EncodeError};
 use crate::error::IngestError;
 use crate::ingest::campaign::{Align, Campaign, Registration, Terrain, TerrainSource, Texture};
 use crate::ingest::types::{NamedPoint, PointCloud};
@@ -584,19 +584,28 @@ fn encode_raster(
     let mut lod_meta = Vec::new();
     let mut lod_files = BTreeMap::new();
     let mut origin = [0.0; 3];
-    for n in 0..lods.max(1) {
-        let (mut m, err) = glb::grid_mesh(&filled, r.cols, r.rows, r.origin, r.cell_m, 1 << n);
-        if m.positions.len() < 4 {
+    let builder = mesh_lod::LodBuilder::new(&filled, r.cols, r.rows, r.origin, r.cell_m);
+    for (n, (mut m, err)) in builder.lods(lods.max(1)).into_iter().enumerate() {
+        let triangles = (m.indices.len() / 3) as u64;
+        // Stop when the simplifier can go no further (the locked border bounds it).
+        if m.positions.len() < 4
+            || lod_meta
+                .last()
+                .is_some_and(|l: &LodMeta| triangles >= l.triangles)
+        {
             break;
         }
         m.texture_png.clone_from(&texture);
         origin = m.local_origin_m;
         lod_meta.push(LodMeta {
             vertices: m.positions.len() as u64,
-            triangles: (m.indices.len() / 3) as u64,
+            triangles,
             max_height_error_m: err,
         });
-        lod_files.insert(roles::lod(n), ctx.put(&glb::encode(&m)?, media::GLB)?);
+        lod_files.insert(
+            roles::lod(n as u32),
+            ctx.put(&glb::encode(&m)?, media::GLB)?,
+        );
     }
     let meta = MeshMeta {
         frame: "ground".into(),
@@ -616,7 +625,7 @@ fn encode_raster(
 
 /// Bumped whenever the pipeline's output bytes change for the same inputs (a stage's version,
 /// the entry layout, report contents), so the whole-compile cache never returns stale releases.
-pub const PIPELINE_VERSION: u32 = 5;
+pub const PIPELINE_VERSION: u32 = 6;
 
 fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
     let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "pipeline": PIPELINE_VERSION, "name": opts.name,

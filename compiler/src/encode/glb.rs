@@ -229,7 +229,8 @@ pub fn grid_mesh(
     (m, err)
 }
 
-fn vertex_normals(p: &[[f32; 3]], idx: &[u32]) -> Vec<[f32; 3]> {
+/// Area-weighted unit vertex normals of a triangle list (up for unused vertices).
+pub(crate) fn vertex_normals(p: &[[f32; 3]], idx: &[u32]) -> Vec<[f32; 3]> {
     let mut acc = vec![[0.0f64; 3]; p.len()];
     for t in idx.chunks_exact(3) {
         let (a, b, c) = (p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]);

@@ -8,6 +8,7 @@ pub mod exr;
 pub mod glb;
 pub mod heightfield;
 pub mod mcap;
+pub mod mesh_lod;
 pub mod png;
 
 /// An encoding failure (a bug or an impossible size, never bad user input).
