@@ -117,12 +117,7 @@ fn max_diff(a: &[f32], b: &[f32]) -> (f64, usize) {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter().position(|a| a == flag).map(|i| {
-            args.get(i + 1)
-                .unwrap_or_else(|| panic!("{flag} needs a value"))
-        })
-    };
+    let value = |flag: &str| common::flag_value(&args, flag);
     let points: usize = value("--points").map_or(19_000_000, |v| v.parse().expect("--points N"));
     let cells: Vec<f64> = value("--cells").map_or(vec![0.03, 0.02, 0.015, 0.01, 0.005], |v| {
         v.split(',').map(|c| c.parse().expect("--cells")).collect()

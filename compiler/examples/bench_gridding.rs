@@ -81,12 +81,7 @@ fn write_f32(path: &Path, v: impl Iterator<Item = f32>) {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| {
-        args.iter().position(|a| a == flag).map(|i| {
-            args.get(i + 1)
-                .unwrap_or_else(|| panic!("{flag} needs a value"))
-        })
-    };
+    let value = |flag: &str| common::flag_value(&args, flag);
     let points: usize = value("--points").map_or(4_000_000, |v| v.parse().expect("--points N"));
     let threads: usize = value("--threads").map_or(0, |v| v.parse().expect("--threads N"));
     let cells: Vec<f64> = value("--cells").map_or(vec![0.030, 0.020, 0.015, 0.010, 0.005], |v| {

@@ -138,3 +138,12 @@ pub fn cloud(scene: &Scene, n: usize) -> (Vec<[f64; 3]>, Vec<f32>) {
     let vertices = pts.into_iter().map(|p| p.0).collect();
     (vertices, albedo)
 }
+
+/// The argument after `flag` in `args`, if `flag` is given (a flag without a value aborts the
+/// benchmark with a message).
+pub fn flag_value<'a>(args: &'a [String], flag: &str) -> Option<&'a String> {
+    args.iter().position(|a| a == flag).map(|i| {
+        args.get(i + 1)
+            .unwrap_or_else(|| panic!("{flag} needs a value"))
+    })
+}
