@@ -36,7 +36,7 @@ fn median_edge(tin_vertices: &[[f64; 3]]) -> f64 {
         .filter(|p| (4.0..5.0).contains(&p[0]) && (4.0..5.0).contains(&p[1]))
         .copied()
         .collect();
-    let tin = build_tin(&patch, None).expect("patch TIN");
+    let tin = build_tin(&patch, None, f64::INFINITY).expect("patch TIN");
     let d = |a: u32, b: u32| {
         let (p, q) = (tin.vertices[a as usize], tin.vertices[b as usize]);
         (p[0] - q[0]).hypot(p[1] - q[1])

@@ -6,7 +6,7 @@
 //! `--points N`, jittered around a square grid over 8.7 × 8.6 m, 8 mm range noise, per-point
 //! albedo) and runs the laser DEM exactly as `regolith compile` does (`compile::laser_terrain`):
 //! `dem.tin` (`build_tin` of the points and their albedo), then `dem.raster` with the long-edge
-//! limit `MaxEdge::Absolute(0.1)`, base −0.1 m, at most 2^28 cells, no crop, and local regression
+//! limit `MaxEdge::Absolute(LASER_MAX_EDGE_M)`, base −0.1 m, at most 2^28 cells, no crop, and local regression
 //! over `DEM_REGRESSION_SPACINGS` median TIN edges, at the compile's five cell sizes (`--cells`).
 //! Each cell size is a separate `rasterize_all` call, timed alone; its time includes the per-call
 //! setup (median edge, triangle preparation, TIN area) that the compile does once for all cells.
@@ -36,7 +36,7 @@ use std::time::Instant;
 
 use common::{cloud, Scene, EXTENT, NOISE_M};
 use rayon::prelude::*;
-use regolith_compiler::compile::DEM_REGRESSION_SPACINGS;
+use regolith_compiler::compile::{DEM_REGRESSION_SPACINGS, LASER_MAX_EDGE_M};
 use regolith_compiler::stages::dem_raster::{DemRaster, MaxEdge, Raster};
 use regolith_compiler::stages::dem_tin::build_tin;
 use serde_json::json;
@@ -130,7 +130,7 @@ fn main() {
     );
 
     let t = Instant::now();
-    let tin = build_tin(&vertices, albedo.as_deref()).expect("dem.tin");
+    let tin = build_tin(&vertices, albedo.as_deref(), LASER_MAX_EDGE_M).expect("dem.tin");
     let tin_s = t.elapsed().as_secs_f64();
     drop((vertices, albedo));
     println!(
@@ -141,9 +141,15 @@ fn main() {
 
     // `compile::laser_terrain`'s `dem.raster` (no crop) at the given cell sizes.
     let stage = |cells: Vec<f64>| {
-        DemRaster::new(cells, None, MaxEdge::Absolute(0.1), -0.1, 1 << 28)
-            .expect("dem.raster parameters")
-            .with_regression((!tin_only).then_some(DEM_REGRESSION_SPACINGS))
+        DemRaster::new(
+            cells,
+            None,
+            MaxEdge::Absolute(LASER_MAX_EDGE_M),
+            -0.1,
+            1 << 28,
+        )
+        .expect("dem.raster parameters")
+        .with_regression((!tin_only).then_some(DEM_REGRESSION_SPACINGS))
     };
     println!("cell_m  cells       valid       fallback  support_mm  seconds  rms_mm  max_mm");
     let (mut raster_s, mut rows_json, mut grid_json) = (0.0, Vec::new(), Vec::new());

@@ -297,13 +297,16 @@ fn laser_terrain(
     drop(merge_in);
     ctx.record(&merge);
     ctx.lap(MergeClean::NAME);
-    let tin = DemTin.run(&ctx.cx, &merged)?;
-    ctx.record(&DemTin);
+    let dem_tin = DemTin {
+        max_edge_m: LASER_MAX_EDGE_M,
+    };
+    let tin = dem_tin.run(&ctx.cx, &merged)?;
+    ctx.record(&dem_tin);
     ctx.lap(DemTin::NAME);
     let raster = DemRaster::new(
         t.raster_m.clone(),
         t.bounds_m,
-        crate::stages::dem_raster::MaxEdge::Absolute(0.1),
+        MaxEdge::Absolute(LASER_MAX_EDGE_M),
         -0.1,
         1 << 28,
     )?
@@ -625,7 +628,7 @@ fn encode_raster(
 
 /// Bumped whenever the pipeline's output bytes change for the same inputs (a stage's version,
 /// the entry layout, report contents), so the whole-compile cache never returns stale releases.
-pub const PIPELINE_VERSION: u32 = 6;
+pub const PIPELINE_VERSION: u32 = 7;
 
 fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
     let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "pipeline": PIPELINE_VERSION, "name": opts.name,
@@ -868,3 +871,8 @@ pub fn compile_path(
 /// `stages::dem_regress`): about a dozen points per estimate at the usual scan density, which
 /// divides the range noise by about 3; albedo keeps its own cell-sized support.
 pub const DEM_REGRESSION_SPACINGS: f64 = 2.0;
+
+/// The laser DEM's hole limit (`dem.raster`'s long-edge rule, and the longest TIN edge
+/// `dem.tin` keeps): 0.1 m, about 10× the spacing of the thesis' 0.030° scans at 5–10 m range
+/// and larger than every raster cell used.
+pub const LASER_MAX_EDGE_M: f64 = 0.1;

@@ -9,6 +9,7 @@
 use nalgebra::{Rotation3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use regolith_compiler::compile::LASER_MAX_EDGE_M;
 use regolith_compiler::ingest::types::{transform, Matrix4, NamedPoint, PointCloud};
 use regolith_compiler::stage::{Stage, StageCx};
 use regolith_compiler::stages::dem_raster::{DemRaster, MaxEdge, Raster};
@@ -307,11 +308,22 @@ fn merged(truth: &[TrueScan], poses: &[Matrix4]) -> MergedCloud {
 }
 
 fn dem(cloud: &MergedCloud, cells: Vec<f64>, crop: Option<[f64; 4]>) -> Vec<Raster> {
-    let tin = build_tin(&cloud.points, cloud.reflectance.as_deref()).unwrap();
-    DemRaster::new(cells, crop, MaxEdge::Absolute(0.1), -0.1, 1 << 24)
-        .unwrap()
-        .run(&StageCx::default(), &tin)
-        .unwrap()
+    let tin = build_tin(
+        &cloud.points,
+        cloud.reflectance.as_deref(),
+        LASER_MAX_EDGE_M,
+    )
+    .unwrap();
+    DemRaster::new(
+        cells,
+        crop,
+        MaxEdge::Absolute(LASER_MAX_EDGE_M),
+        -0.1,
+        1 << 24,
+    )
+    .unwrap()
+    .run(&StageCx::default(), &tin)
+    .unwrap()
 }
 
 #[test]
@@ -448,12 +460,12 @@ fn bench_tin_and_rasters() {
         .collect();
     let refl: Vec<f32> = (0..n).map(|i| (i % 100) as f32 / 100.0).collect();
     let t0 = std::time::Instant::now();
-    let tin = build_tin(&points, Some(&refl)).unwrap();
+    let tin = build_tin(&points, Some(&refl), LASER_MAX_EDGE_M).unwrap();
     let t1 = t0.elapsed();
     let stage = DemRaster::new(
         vec![0.030, 0.020, 0.015, 0.010, 0.005],
         None,
-        MaxEdge::Absolute(0.1),
+        MaxEdge::Absolute(LASER_MAX_EDGE_M),
         -0.1,
         1 << 28,
     )

@@ -5,15 +5,18 @@
 //!   whose z (and albedo) is the **mean** of the group: a TIN can hold only one height per
 //!   position, the mean is the least-squares height of the group, and merging ourselves (sorted
 //!   by x, y, then input index) makes the result independent of spade's internal dedup order.
-//! - spade's `bulk_load` is used (O(n log n), far faster than incremental insertion); it is
-//!   single-threaded and deterministic, so the vertex/triangle lists are bit-identical run to run.
-//!   Triangles index our vertex array and are counter-clockwise seen from +z.
+//! - The triangulation (`delaunay`) is spade's `bulk_load` (O(n log n)), run on vertical strips in
+//!   parallel for big clouds. The TIN holds the Delaunay triangles whose longest horizontal edge
+//!   is at most `max_edge_m` (the `dem.raster` hole limit; longer triangles span missing data and
+//!   no raster uses them), which is what lets strips give exactly those triangles. Deterministic:
+//!   the vertex/triangle lists are bit-identical run to run and for any thread count. Triangles
+//!   index our vertex array and are counter-clockwise seen from +z.
 //! - Non-finite coordinates are an error naming the first bad point, never a spade panic.
 
 use rayon::prelude::*;
 use serde::Serialize;
-use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
+use super::delaunay::triangulate;
 use super::merge_clean::MergedCloud;
 use crate::stage::{Stage, StageCx, StageError};
 
@@ -53,24 +56,16 @@ impl Tin {
     }
 }
 
-#[derive(Clone, Copy)]
-struct Vertex {
-    pos: Point2<f64>,
-    index: u32,
-}
-
-impl HasPosition for Vertex {
-    type Scalar = f64;
-    fn position(&self) -> Point2<f64> {
-        self.pos
-    }
-}
-
-/// Triangulates `points` (x, y) carrying z and the optional per-point `albedo`.
+/// Triangulates `points` (x, y) carrying z and the optional per-point `albedo`, keeping the
+/// triangles whose longest horizontal edge is at most `max_edge_m` (`f64::INFINITY`: all).
 ///
 /// Errors (as text; the stage adds its name) on non-finite points, an albedo list of the wrong
 /// length, more than `u32::MAX` vertices, or a spade insertion error.
-pub fn build_tin(points: &[[f64; 3]], albedo: Option<&[f32]>) -> Result<Tin, String> {
+pub fn build_tin(
+    points: &[[f64; 3]],
+    albedo: Option<&[f32]>,
+    max_edge_m: f64,
+) -> Result<Tin, String> {
     if let Some(i) = points.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
         return Err(format!(
             "point {i} has non-finite coordinates, expected finite x, y, z"
@@ -121,21 +116,9 @@ pub fn build_tin(points: &[[f64; 3]], albedo: Option<&[f32]>) -> Result<Tin, Str
         start = end;
     }
     let duplicates_merged = points.len() - vertices.len();
-    let n = u32::try_from(vertices.len())
+    u32::try_from(vertices.len())
         .map_err(|_| format!("{} vertices, expected at most {}", vertices.len(), u32::MAX))?;
-    let spade_vertices: Vec<Vertex> = (0..n)
-        .zip(&vertices)
-        .map(|(index, p)| Vertex {
-            pos: Point2::new(p[0], p[1]),
-            index,
-        })
-        .collect();
-    let dt: DelaunayTriangulation<Vertex> = DelaunayTriangulation::bulk_load(spade_vertices)
-        .map_err(|e| format!("triangulation failed: {e:?}"))?;
-    let triangles: Vec<[u32; 3]> = dt
-        .inner_faces()
-        .map(|f| f.vertices().map(|v| v.data().index))
-        .collect();
+    let triangles = triangulate(&vertices, max_edge_m)?;
     Ok(Tin {
         vertices,
         albedo: albedo.map(|_| refl),
@@ -144,24 +127,27 @@ pub fn build_tin(points: &[[f64; 3]], albedo: Option<&[f32]>) -> Result<Tin, Str
     })
 }
 
-/// Stage `dem.tin` (no tunable parameters: the duplicate rule is fixed, see the module doc).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct DemTin;
+/// Stage `dem.tin` (the duplicate rule is fixed, see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DemTin {
+    /// Longest horizontal triangle edge kept, metres (`f64::INFINITY`: the whole triangulation).
+    pub max_edge_m: f64,
+}
 
 impl Stage for DemTin {
     const NAME: &'static str = "dem.tin";
-    const VERSION: u32 = 2;
+    const VERSION: u32 = 3;
     const DESCRIPTION: &'static str =
         "Delaunay TIN of the merged ground points in (x, y); (x, y) duplicates keep the mean z";
     type Input = MergedCloud;
     type Output = Tin;
 
     fn params(&self) -> serde_json::Value {
-        serde_json::json!({ "duplicates": "mean" })
+        serde_json::json!({ "duplicates": "mean", "max_edge_m": self.max_edge_m })
     }
 
     fn run(&self, _cx: &StageCx, input: &MergedCloud) -> Result<Tin, StageError> {
-        build_tin(&input.points, input.albedo.as_deref())
+        build_tin(&input.points, input.albedo.as_deref(), self.max_edge_m)
             .map_err(|e| StageError::new(Self::NAME, e))
     }
 }
@@ -180,11 +166,11 @@ mod tests {
             [0.5, 0.5, 2.0],
             [0.5, 0.5, 4.0],
         ];
-        let tin = build_tin(&pts, None).unwrap();
+        let tin = build_tin(&pts, None, f64::INFINITY).unwrap();
         assert_eq!(tin.vertices.len(), 5);
         assert_eq!(tin.duplicates_merged, 1);
         assert_eq!(tin.triangles.len(), 4);
         assert!(tin.vertices.contains(&[0.5, 0.5, 3.0]));
-        assert!(build_tin(&[[f64::NAN, 0.0, 0.0]], None).is_err());
+        assert!(build_tin(&[[f64::NAN, 0.0, 0.0]], None, 1.0).is_err());
     }
 }

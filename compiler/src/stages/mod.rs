@@ -1,5 +1,6 @@
 //! The stages of `regolith compile`, one file each, in pipeline order (see `stage.rs`).
 pub mod captures;
+pub mod delaunay;
 pub mod dem_raster;
 pub mod dem_regress;
 pub mod dem_tin;
