@@ -309,17 +309,9 @@ fn triangulate_in_strips(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
     use std::collections::BTreeSet;
-
-    fn unit(seed: u64, i: u64) -> f64 {
-        let mut z = seed
-            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            .wrapping_add(i.wrapping_mul(0xBF58_476D_1CE4_E5B9));
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
 
     /// Canonical set of triangles (rotated so the smallest index comes first; orientation kept).
     fn canonical(tris: &[[u32; 3]]) -> BTreeSet<[u32; 3]> {
@@ -340,12 +332,13 @@ mod tests {
     /// A cloud with holes (empty discs wider than the margin) and a ragged outline, x-sorted.
     fn holey_cloud(n: usize, seed: u64) -> Vec<[f64; 3]> {
         let holes = [[2.0, 1.5, 0.4], [5.1, 3.0, 0.25], [7.0, 0.5, 0.6]];
-        let mut pts: Vec<[f64; 3]> = (0..n as u64)
-            .map(|i| {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut pts: Vec<[f64; 3]> = (0..n)
+            .map(|_| {
                 [
-                    unit(seed, i) * 8.0,
-                    unit(seed + 1, i) * 4.0,
-                    unit(seed + 2, i),
+                    rng.gen::<f64>() * 8.0,
+                    rng.gen::<f64>() * 4.0,
+                    rng.gen::<f64>(),
                 ]
             })
             .filter(|p| {
@@ -393,9 +386,10 @@ mod tests {
     fn circle_emptiness_matches_brute_force() {
         let pts = holey_cloud(5_000, 11);
         let grid = PointGrid::new(&pts, 0.05);
+        let mut rng = ChaCha8Rng::seed_from_u64(90);
         for k in 0..400u64 {
-            let c = [unit(90, k) * 10.0 - 1.0, unit(91, k) * 6.0 - 1.0];
-            let r2 = (unit(92, k) * 2.0).powi(2);
+            let c = [rng.gen::<f64>() * 10.0 - 1.0, rng.gen::<f64>() * 6.0 - 1.0];
+            let r2 = (rng.gen::<f64>() * 2.0).powi(2);
             let brute = pts
                 .iter()
                 .all(|p| (p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) >= r2 * (1.0 - 1e-12));
