@@ -1,10 +1,11 @@
 //! `regolith compile`: the pipeline from a resolved campaign to a committed release.
 //!
-//! The pipeline is plain Rust (house style): ground control → per laser terrain
-//! `register.tiepoints` → `register.icp` → `merge.clean` → `dem.tin` → `dem.raster` → encode
-//! heightfields, textures and meshes → `captures.build` → reports → release. Every stage that
-//! ran is recorded with its version and params in the release plan. Nothing time- or
-//! machine-dependent enters an object: timings go to the returned summary only.
+//! The pipeline is plain Rust (house style): ground control (Vicon markers, GCP files) → per
+//! laser terrain `register.tiepoints` → `register.icp` → `merge.clean` → `dem.tin` →
+//! `dem.raster` → per reconstruction terrain `sfm.align` (laser, control points, or both) →
+//! encode heightfields, textures and meshes → `captures.build` → reports → release. Every
+//! stage that ran is recorded with its version and params in the release plan. Nothing time-
+//! or machine-dependent enters an object: timings go to the returned summary only.
 //!
 //! Whole-compile cache: the key is the SHA-256 of the compiler version, the options and every
 //! input file's hash; `refs/cache/<key>` remembers the release it produced, so an unchanged
@@ -25,7 +26,7 @@ use crate::encode::{glb, heightfield, mesh_lod, png, EncodeError};
 use crate::error::IngestError;
 use crate::ingest::campaign::{Align, Campaign, Registration, Terrain, TerrainSource, Texture};
 use crate::ingest::types::{NamedPoint, PointCloud};
-use crate::ingest::{markers, sop_dat, tiepoints, vicon_csv};
+use crate::ingest::{gcp, markers, sop_dat, tiepoints, vicon_csv};
 use crate::inventory::{load_reconstruction, load_scan};
 use crate::stage::{Stage, StageCx, StageError};
 use crate::stages::captures::BuildCaptures;
@@ -35,7 +36,7 @@ use crate::stages::dem_tin::Tin;
 use crate::stages::merge_clean::{MergeClean, MergeScan};
 use crate::stages::register_icp::{IcpInput, IcpScan, RegisterIcp};
 use crate::stages::register_tiepoints::{RegisterTiepoints, ScanTiepoints, TiepointInput};
-use crate::stages::sfm_align::{AlignInput, AlignSfm};
+use crate::stages::sfm_align::{AlignInput, AlignSfm, ControlPoint};
 
 /// Anything that stops a compile. The database is left as it was.
 #[derive(Debug, thiserror::Error)]
@@ -350,14 +351,49 @@ fn laser_terrain(
     })
 }
 
-/// A reconstruction terrain: similarity-align the SfM mesh onto the merged laser cloud, then
-/// rasterise the aligned mesh (its vertex colours as the texture) at every requested cell size.
+/// The ground control points of every reconstruction aligned by a GCP file, by reconstruction
+/// name: its markers with their ground positions (the file's, else the ground marker of the
+/// same name). Read before any heavy stage runs, so a bad file fails the compile at once.
+/// Fewer than 3 points is an error naming the file.
+fn gcp_control(
+    c: &Campaign,
+    markers: &[NamedPoint],
+    limits: &regolith_format::limits::Limits,
+) -> Result<BTreeMap<String, Vec<gcp::MatchedGcp>>, CompileError> {
+    let mut out = BTreeMap::new();
+    for r in &c.reconstructions {
+        let Align::Gcp(path) = &r.align else {
+            continue;
+        };
+        let file = c.root.join(path);
+        let rows = gcp::read_path(&file, limits)?;
+        let matched = gcp::match_markers(&rows, markers).map_err(|e| e.in_file(&file))?;
+        if matched.len() < 3 {
+            return Err(IngestError::invalid(format!(
+                "reconstruction {:?}: {} control point(s), expected at least 3 with ground positions (given, or matched by name to the ground markers)",
+                r.name,
+                matched.len()
+            ))
+            .in_file(&file)
+            .into());
+        }
+        out.insert(r.name.clone(), matched);
+    }
+    Ok(out)
+}
+
+/// A reconstruction terrain: similarity-align the SfM mesh onto the merged laser cloud
+/// (`align = "laser"`) or onto ground control points (`align = "<GCP file>"`, refined on the
+/// laser cloud when the campaign has a laser terrain), then rasterise the aligned mesh (its
+/// vertex colours as the texture) at every requested cell size.
+#[allow(clippy::too_many_arguments)]
 fn sfm_terrain(
     ctx: &mut Ctx<'_>,
     c: &Campaign,
     t: &Terrain,
     recons: &[usize],
     laser: &LaserData<'_>,
+    control: &BTreeMap<String, Vec<gcp::MatchedGcp>>,
     opts: &CompileOptions,
     dem_out: &mut Vec<Value>,
 ) -> Result<Value, CompileError> {
@@ -366,30 +402,61 @@ fn sfm_terrain(
         let Some(r) = c.reconstructions.get(i) else {
             continue;
         };
-        if let Align::Gcp(p) = &r.align {
-            return Err(StageError::new(AlignSfm::NAME, format!("reconstruction {:?}: control-point files ({}) are not read by this compiler version; use align = \"laser\"", r.name, p.display())).into());
-        }
-        if laser.points.is_empty() {
-            return Err(StageError::new(
-                AlignSfm::NAME,
-                format!(
-                    "reconstruction {:?}: align = \"laser\" needs a laser terrain in the campaign",
-                    r.name
-                ),
-            )
-            .into());
-        }
+        let gcps = match &r.align {
+            Align::Laser if laser.points.is_empty() => {
+                return Err(StageError::new(
+                    AlignSfm::NAME,
+                    format!(
+                        "reconstruction {:?}: align = \"laser\" needs a laser terrain in the campaign",
+                        r.name
+                    ),
+                )
+                .into());
+            }
+            Align::Laser => None,
+            Align::Gcp(p) => Some((
+                p,
+                control.get(&r.name).ok_or_else(|| {
+                    StageError::new(
+                        AlignSfm::NAME,
+                        format!("reconstruction {:?}: control points not read", r.name),
+                    )
+                })?,
+            )),
+        };
         let mesh = load_reconstruction(&c.root, &r.file, r.format, &opts.limits)?;
         ctx.lap("ingest.reconstruction");
         let align = AlignSfm::default();
-        let out = align.run(
-            &ctx.cx,
-            &AlignInput {
-                mesh: mesh.clone(),
-                laser: laser.points.to_vec(),
-                control: Vec::new(),
-            },
-        )?;
+        let control: Vec<ControlPoint> = gcps
+            .iter()
+            .flat_map(|(_, g)| g.iter())
+            .map(|g| ControlPoint {
+                name: g.name.clone(),
+                sfm: g.sfm,
+                ground: g.ground,
+            })
+            .collect();
+        let out = align
+            .run(
+                &ctx.cx,
+                &AlignInput {
+                    mesh: mesh.clone(),
+                    laser: laser.points.to_vec(),
+                    control,
+                },
+            )
+            .map_err(|e| match &gcps {
+                Some((p, _)) => StageError::new(
+                    e.stage,
+                    format!(
+                        "reconstruction {:?}, control points {}: {}",
+                        r.name,
+                        p.display(),
+                        e.message
+                    ),
+                ),
+                None => e,
+            })?;
         ctx.record(&align);
         ctx.lap(AlignSfm::NAME);
         // Vertex colours are read as linear albedo (grey / 255, Rec. 601 luma for RGB), the
@@ -442,14 +509,27 @@ fn sfm_terrain(
             drape(ctx, t, target, &tin, laser.rasters, opts)?;
         }
         ctx.lap("encode.terrain");
-        reports.insert(
-            r.name.clone(),
-            json!({
-                "scale": out.similarity.scale,
-                "rms_m": out.report.icp.as_ref().map(|i| i.rms_nearest_m),
-                "report": out.report,
-            }),
-        );
+        let mut row = json!({
+            "scale": out.similarity.scale,
+            "rms_m": out.report.icp.as_ref().map(|i| i.rms_nearest_m),
+            "report": out.report,
+        });
+        // Only GCP alignments add fields, so a laser alignment's report bytes stay as they were.
+        if let (Some((p, g)), Some(cr)) = (&gcps, &out.report.control) {
+            row["method"] = json!(out.report.method);
+            row["gcp_file"] = json!(p.to_string_lossy().replace('\\', "/"));
+            row["gcp_rms_m"] = json!(cr.rms_m);
+            row["gcp_residuals_m"] = json!(cr
+                .residuals_m
+                .iter()
+                .cloned()
+                .collect::<BTreeMap<String, f64>>());
+            row["control_points"] = json!(g
+                .iter()
+                .map(|g| json!({"name": g.name, "sfm": g.sfm, "ground_m": g.ground, "ground_from": g.ground_from.as_str()}))
+                .collect::<Vec<_>>());
+        }
+        reports.insert(r.name.clone(), row);
     }
     Ok(Value::Object(reports))
 }
@@ -679,6 +759,7 @@ pub fn compile(
     ctx.lap("hash.inputs");
     progress("ground control", 0.05);
     let (markers, marker_report) = ground_control(c, &ctx.cx, &opts.limits)?;
+    let control = gcp_control(c, &markers, &opts.limits)?;
     ctx.lap("ground.markers");
     let mut registration = Vec::new();
     let mut dem = Vec::new();
@@ -718,6 +799,7 @@ pub fn compile(
                         points: &laser_points,
                         rasters: &laser_rasters,
                     },
+                    &control,
                     opts,
                     &mut dem,
                 )? {
@@ -732,7 +814,15 @@ pub fn compile(
         .as_object()
         .map(|m| {
             m.iter()
-                .map(|(k, v)| (k.clone(), json!({"scale": v["scale"], "rms_m": v["rms_m"]})))
+                .map(|(k, v)| {
+                    let mut row = json!({"scale": v["scale"], "rms_m": v["rms_m"]});
+                    if v.get("method").is_some() {
+                        for key in ["method", "gcp_file", "gcp_rms_m", "gcp_residuals_m"] {
+                            row[key] = v[key].clone();
+                        }
+                    }
+                    (k.clone(), row)
+                })
                 .collect::<serde_json::Map<_, _>>()
         })
         .map(Value::Object)

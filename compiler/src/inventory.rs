@@ -10,11 +10,11 @@ use regolith_format::limits::Limits;
 use serde::Serialize;
 
 use crate::error::{IngestError, Result};
-use crate::ingest::campaign::{Campaign, MeshFormat, Registration, Scan, ScanFormat};
+use crate::ingest::campaign::{Align, Campaign, MeshFormat, Registration, Scan, ScanFormat};
 use crate::ingest::types::{transform, PointCloud, TriMesh};
 use crate::ingest::{
-    calib_opencv, e57, images, las, markers, ply, ptx, riscan_ascii, sop_dat, tiepoints, vicon_csv,
-    vrml,
+    calib_opencv, e57, gcp, images, las, markers, ply, ptx, riscan_ascii, sop_dat, tiepoints,
+    vicon_csv, vrml,
 };
 
 /// Reads a scan in its scanner's own coordinates (SOCS). A file holding several scans (PTX,
@@ -172,6 +172,14 @@ pub fn inventory(c: &Campaign, limits: &Limits) -> Result<Inventory> {
                 "bounds": bounds(&m.positions), "colors": m.colors.is_some(), "uvs": m.uvs.is_some(),
                 "texture": m.texture, "units": "arbitrary (similarity frame)"}))
         })));
+        if let Align::Gcp(p) = &r.align {
+            jobs.push((p.clone(), "gcp", "csv".into(), Box::new(move || {
+                let g = gcp::read_path(&root.join(p), limits)?;
+                Ok(serde_json::json!({"markers": g.len(), "with_ground": g.iter().filter(|m| m.ground.is_some()).count(),
+                    "names": g.iter().map(|m| m.name.clone()).collect::<Vec<_>>(),
+                    "units": "SfM frame (ground columns: m)"}))
+            })));
+        }
     }
     for cam in &c.cameras {
         jobs.push((

@@ -5,6 +5,8 @@
 //! its `[lighting]` is exactly the light the captures were rendered with. The extra format
 //! copies (`scans/pos2.ply`, `pos3.e57`, `pos4.las`) and `sfm/mesh.ply` are deliberately not
 //! referenced: they exist for format tests and hold the same data as the referenced files.
+//! Nor is `sfm/mesh_gcp.csv`: the reconstruction is aligned with `align = "laser"`; a test or a
+//! user switches to ground control by setting `align = "sfm/mesh_gcp.csv"`.
 
 use regolith_validator::render::Light;
 
@@ -122,11 +124,13 @@ what the generator knows and the campaign does not; no campaign entry points int
 | `calib/rig_markers.csv` | `Name,X,Y,Z`: rig ball centres in the left-camera frame, metres |
 | `calib/texture_camera_Calib_Results.m` | Bouguet toolbox calibration of the texture camera |
 | `sfm/mesh.wrl`, `sfm/mesh.ply` | the multi-view-stereo mesh (vertex colours) in an arbitrary similarity frame |
+| `sfm/mesh_gcp.csv` | ground control points: `Label,X,Y,Z`, the Vicon markers as placed on the mesh (its frame, 1.5 mm picking noise per axis); not referenced (`align = \"sfm/mesh_gcp.csv\"` uses it) |
 | `captures/locNN_{left,right}_{a,b}.png` | raw (distorted) 8-bit NavCam frames, two per pose with independent noise |
 | `truth/height.exr` + `height.json` | true heights (float32, channel `Z`) and grid geometry |
 | `truth/albedo.png` | true albedo, 16-bit grey (value / 65535), same grid as the heights |
 | `truth/scans.json` | every scan's true SOCS → ground transform (4x4 and pose), and the reflectance range slope and noise it was simulated with |
 | `truth/sfm.json` | the ground → SfM similarity (scale, R, t) |
+| `truth/gcp.json` | the ground control points: true centres, picking noise, true and written SfM positions |
 | `truth/cameras.json` | calibrated and true intrinsics (true includes hidden distortion), stereo extrinsics |
 | `truth/captures.json` | every true `ground_from_camera` (includes the hidden pose bias) and the rig pose |
 | `truth/markers.json` | true ball centres |

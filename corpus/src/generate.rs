@@ -176,6 +176,17 @@ pub fn generate(
         "sfm/mesh.ply",
         &ply::mesh(&mesh.positions, &mesh.colors, &mesh.triangles, comment),
     )?;
+    let marker_centres: Vec<(String, [f64; 3])> = terrain
+        .markers
+        .iter()
+        .map(|m| (m.name.clone(), m.centre_m))
+        .collect();
+    let gcps = sfm::ground_control_points(
+        &marker_centres,
+        &mesh.similarity,
+        &mut stage_rng(seed, "sfm.gcp"),
+    );
+    sink.write(truth::GCP_FILE, &sfm::gcp_csv(&gcps))?;
     lap("sfm", &mut times);
 
     progress("truth", 0.0);
@@ -196,6 +207,7 @@ pub fn generate(
         &light,
         &scans,
         &mesh.similarity,
+        &gcps,
         &cams,
         &captures,
         &hidden_truth,

@@ -7,6 +7,8 @@
 //! * `scans.json`: per scan the true SOCS → ground pose as a 4x4 (row-major, column-vector,
 //!   RIEGL convention) and as a `Pose`, the station, the point count and the visible markers.
 //! * `sfm.json`: the ground → SfM similarity (scale, R, t; `p_sfm = s·R·p_ground + t`).
+//! * `gcp.json`: the ground control points of `sfm/mesh_gcp.csv`: per marker the true centre,
+//!   the picking noise added (ground frame) and the true and written SfM positions.
 //! * `cameras.json`: calibrated and true intrinsics (true = calibrated + hidden distortion),
 //!   and the stereo `right_from_left`.
 //! * `captures.json`: per capture the Vicon rig pose and each camera's true
@@ -25,7 +27,7 @@ use serde::Serialize;
 
 use crate::instruments::navcam::{CapturePose, Frames, StereoHead};
 use crate::instruments::riegl::Scan;
-use crate::instruments::sfm::Similarity;
+use crate::instruments::sfm::{GcpTruth, Similarity};
 use crate::presets::ScannerSpec;
 use crate::sink::Sink;
 use crate::terrain::Terrain;
@@ -236,6 +238,19 @@ struct ScansFile<'a> {
     scans: &'a [ScanTruth],
 }
 
+/// The ground-control-point file of the reconstruction (not referenced by `campaign.toml`,
+/// whose `align` stays `"laser"`).
+pub const GCP_FILE: &str = "sfm/mesh_gcp.csv";
+
+/// `truth/gcp.json`.
+#[derive(Serialize)]
+struct GcpFileTruth<'a> {
+    file: &'a str,
+    convention: &'a str,
+    picking_noise_sigma_m_per_axis: f64,
+    points: &'a [GcpTruth],
+}
+
 /// Writes every truth file.
 #[allow(clippy::too_many_arguments)]
 pub fn write_all(
@@ -244,6 +259,7 @@ pub fn write_all(
     light: &Light,
     scans: &[ScanTruth],
     similarity: &Similarity,
+    gcps: &[GcpTruth],
     cameras: &CamerasTruth,
     captures: &[CaptureTruth],
     hidden: &HiddenTruth,
@@ -289,6 +305,15 @@ pub fn write_all(
         },
     )?;
     sink.write_json("truth/sfm.json", similarity)?;
+    sink.write_json(
+        "truth/gcp.json",
+        &GcpFileTruth {
+            file: GCP_FILE,
+            convention: "sfm = similarity(ground_m + noise_m) with the similarity of truth/sfm.json; the file holds sfm (6 decimals); ground_m = the true ball centre (what vicon/markers.csv measures)",
+            picking_noise_sigma_m_per_axis: crate::instruments::sfm::GCP_PICKING_SIGMA_M,
+            points: gcps,
+        },
+    )?;
     sink.write_json("truth/cameras.json", cameras)?;
     sink.write_json("truth/captures.json", &captures)?;
     sink.write_json("truth/markers.json", &terrain.markers)?;

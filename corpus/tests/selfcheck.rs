@@ -278,3 +278,69 @@ fn format_copies_match_the_ascii_scan() {
         assert!((f64::from(x) - p[0]).abs() < 1e-4);
     }
 }
+
+/// `sfm/mesh_gcp.csv` holds every Vicon marker, placed in the SfM frame: mapped back through the
+/// true similarity each lies within a few mm of its true ball centre (the picking noise
+/// `truth/gcp.json` records), and the noise has the documented size.
+#[test]
+fn gcp_file_places_the_vicon_markers_in_the_sfm_frame() {
+    let dir = plain();
+    let text = std::fs::read_to_string(dir.join("sfm/mesh_gcp.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows[0], ["Label", "X", "Y", "Z"]);
+    let markers = json(dir, "truth/markers.json");
+    let markers = markers.as_array().unwrap();
+    assert_eq!(rows.len(), 1 + markers.len());
+    let sfm = json(dir, "truth/sfm.json");
+    let s = sfm["scale"].as_f64().unwrap();
+    let r: Vec<Vec<f64>> = (0..3)
+        .map(|i| {
+            (0..3)
+                .map(|j| sfm["rotation"][i][j].as_f64().unwrap())
+                .collect()
+        })
+        .collect();
+    let t: Vec<f64> = (0..3)
+        .map(|i| sfm["translation"][i].as_f64().unwrap())
+        .collect();
+    let truth = json(dir, "truth/gcp.json");
+    assert_eq!(truth["file"], "sfm/mesh_gcp.csv");
+    let sigma = truth["picking_noise_sigma_m_per_axis"].as_f64().unwrap();
+    assert_eq!(sigma, 0.0015);
+    let mut sum2 = 0.0;
+    for ((row, m), g) in rows[1..]
+        .iter()
+        .zip(markers)
+        .zip(truth["points"].as_array().unwrap())
+    {
+        assert_eq!(row[0], m["name"].as_str().unwrap());
+        assert_eq!(g["name"], m["name"]);
+        let q: Vec<f64> = row[1..].iter().map(|v| v.parse().unwrap()).collect();
+        // ground = Rᵀ (q − t) / s
+        let d: Vec<f64> = (0..3).map(|i| q[i] - t[i]).collect();
+        let back: Vec<f64> = (0..3)
+            .map(|j| (0..3).map(|i| r[i][j] * d[i]).sum::<f64>() / s)
+            .collect();
+        let centre: Vec<f64> = (0..3).map(|k| m["centre_m"][k].as_f64().unwrap()).collect();
+        let err: Vec<f64> = (0..3).map(|k| back[k] - centre[k]).collect();
+        for k in 0..3 {
+            let noise = g["noise_m"][k].as_f64().unwrap();
+            // The file rounds to 1e-6 SfM units.
+            assert!((err[k] - noise).abs() < 2e-6, "{} axis {k}", row[0]);
+        }
+        let e = err.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(e < 5.0 * sigma, "{}: {e} m", row[0]);
+        sum2 += e * e;
+    }
+    let rms = (sum2 / markers.len() as f64).sqrt();
+    println!(
+        "GCP picking error over {} markers: 3D RMS {:.2} mm",
+        markers.len(),
+        rms * 1e3
+    );
+    assert!(rms > 0.0005 && rms < 0.006, "3D RMS {rms} m");
+}

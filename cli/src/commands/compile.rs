@@ -120,6 +120,32 @@ pub fn run(
             );
         }
     }
+    for (name, a) in summary.alignment.as_object().into_iter().flatten() {
+        let mut line = format!(
+            "  {name:<24} SfM alignment: scale {:.5}",
+            a["scale"].as_f64().unwrap_or(f64::NAN)
+        );
+        if let Some(rms) = a["rms_m"].as_f64() {
+            line.push_str(&format!(", laser ICP RMS {:.2} mm", rms * 1e3));
+        }
+        if let (Some(method), Some(rms)) = (a["method"].as_str(), a["gcp_rms_m"].as_f64()) {
+            let residuals = a["gcp_residuals_m"].as_object();
+            let worst = residuals
+                .into_iter()
+                .flatten()
+                .filter_map(|(k, v)| Some((k, v.as_f64()?)))
+                .max_by(|x, y| x.1.total_cmp(&y.1));
+            line.push_str(&format!(
+                ", method {method}, GCP RMS {:.2} mm over {} points",
+                rms * 1e3,
+                residuals.map_or(0, serde_json::Map::len)
+            ));
+            if let Some((k, v)) = worst {
+                line.push_str(&format!(" (largest {:.2} mm at {k})", v * 1e3));
+            }
+        }
+        println!("{line}");
+    }
     for w in &summary.warnings {
         println!("  warning: {}", w["message"].as_str().unwrap_or(""));
     }

@@ -17,6 +17,7 @@ pub mod campaign;
 pub mod cmpmvs;
 pub mod colmap;
 pub mod e57;
+pub mod gcp;
 pub mod images;
 pub mod las;
 pub mod markers;
