@@ -15,14 +15,15 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
-use regolith_format::kinds::{self, media, roles, CameraMeta, LodMeta, MeshMeta, TextureMeta};
+use rayon::prelude::*;
+use regolith_format::kinds::{self, media, roles, CameraMeta, MeshMeta, TextureMeta};
 use regolith_format::manifest::{new_release, CampaignRef, InputFile, PlanStep, Producer};
 use regolith_format::{Entry, FileRef, ObjectId, Release, Tile};
 use regolith_reader::{ReaderError, Writer};
 use serde::Serialize;
 use serde_json::{json, Value};
 
-use crate::encode::{glb, heightfield, mesh_lod, png, EncodeError};
+use crate::encode::{heightfield, png, terrain, EncodeError};
 use crate::error::IngestError;
 use crate::ingest::campaign::{Align, Campaign, Registration, Terrain, TerrainSource, Texture};
 use crate::ingest::types::{NamedPoint, PointCloud};
@@ -315,23 +316,14 @@ fn laser_terrain(
     let rasters = raster.run(&ctx.cx, &tin)?;
     ctx.record(&raster);
     ctx.lap(DemRaster::NAME);
-    for r in &rasters {
-        let name = format!("{}/{}", t.name, cell_label(r.cell_m));
-        encode_raster(
-            ctx,
-            &name,
-            &t.name,
-            r,
-            if t.texture == Texture::Reflectance {
-                albedo_png(r)?
-            } else {
-                None
-            },
-            "reflectance",
-            opts.lods,
-        )?;
-        dem_out.push(dem_row(&name, r));
-    }
+    encode_rasters(
+        ctx,
+        &t.name,
+        &rasters,
+        (t.texture == Texture::Reflectance).then_some("reflectance"),
+        opts.lods,
+        Some(dem_out),
+    )?;
     ctx.lap("encode.terrain");
     let report = json!({
         "terrain": t.name,
@@ -487,24 +479,14 @@ fn sfm_terrain(
             1 << 28,
         )?
         .with_regression(Some(DEM_REGRESSION_SPACINGS));
-        for ras in raster.rasterize_all(&tin)? {
-            let name = format!("{}/{}", t.name, cell_label(ras.cell_m));
-            let texture = if t.texture == Texture::VertexColor {
-                albedo_png(&ras)?
-            } else {
-                None
-            };
-            encode_raster(
-                ctx,
-                &name,
-                &t.name,
-                &ras,
-                texture,
-                "vertex-color",
-                opts.lods,
-            )?;
-            dem_out.push(dem_row(&name, &ras));
-        }
+        encode_rasters(
+            ctx,
+            &t.name,
+            &raster.rasterize_all(&tin)?,
+            (t.texture == Texture::VertexColor).then_some("vertex-color"),
+            opts.lods,
+            Some(dem_out),
+        )?;
         if let Some(target) = &t.drape_on {
             drape(ctx, t, target, &tin, laser.rasters, opts)?;
         }
@@ -555,6 +537,7 @@ fn drape(
             t.name
         ))
     })?;
+    let mut draped = Vec::new();
     for &cell in &t.raster_m {
         let laser = rasters.iter().find(|r| r.cell_m == cell).ok_or_else(|| {
             err(format!(
@@ -578,45 +561,72 @@ fn drape(
                 on_grid.cols, on_grid.rows, laser.cols, laser.rows
             )));
         }
-        let draped = Raster {
+        draped.push(Raster {
             albedo: on_grid.albedo,
             ..laser.clone()
-        };
-        let name = format!("{}-on-{target}/{}", t.name, cell_label(cell));
-        let source = format!("{}-on-{target}", t.name);
-        let texture = albedo_png(&draped)?;
-        encode_raster(
-            ctx,
-            &name,
-            &source,
-            &draped,
-            texture,
-            "sfm-on-laser",
-            opts.lods,
-        )?;
+        });
+    }
+    encode_rasters(
+        ctx,
+        &format!("{}-on-{target}", t.name),
+        &draped,
+        Some("sfm-on-laser"),
+        opts.lods,
+        None,
+    )
+}
+
+/// Encodes a terrain's rasters (entries `<terrain>/<cell>`) in parallel — encoding is pure and
+/// most of `encode.terrain`'s cost — and stores them in raster order, so entries and bytes do
+/// not depend on the thread count. `texture`: the content of the texture made from each
+/// raster's albedo (none: no texture). Appends each raster's statistics row to `dem_out`.
+fn encode_rasters(
+    ctx: &mut Ctx<'_>,
+    terrain: &str,
+    rasters: &[Raster],
+    texture: Option<&str>,
+    lods: u32,
+    mut dem_out: Option<&mut Vec<Value>>,
+) -> Result<(), CompileError> {
+    let encoded = rasters
+        .par_iter()
+        .map(|r| {
+            let png = match texture {
+                Some(_) => albedo_png(r)?,
+                None => None,
+            };
+            let grid = heightfield::GridInput {
+                origin_m: r.origin,
+                cell_m: r.cell_m,
+                width: r.cols as u32,
+                height: r.rows as u32,
+                heights: &r.heights,
+                site_origin_m: [0.0; 3],
+                source: terrain,
+            };
+            Ok(terrain::encode(&grid, png, lods)?)
+        })
+        .collect::<Result<Vec<_>, CompileError>>()?;
+    for (r, enc) in rasters.iter().zip(encoded) {
+        let name = format!("{terrain}/{}", cell_label(r.cell_m));
+        store_raster(ctx, &name, enc, texture.unwrap_or_default())?;
+        if let Some(rows) = dem_out.as_deref_mut() {
+            rows.push(dem_row(&name, r));
+        }
     }
     Ok(())
 }
 
-fn encode_raster(
+/// Stores one encoded raster as its heightfield entry `name`, texture entry `<name>/texture`
+/// (of `content`) and mesh entry `<name>/mesh`.
+fn store_raster(
     ctx: &mut Ctx<'_>,
     name: &str,
-    source: &str,
-    r: &Raster,
-    texture: Option<Vec<u8>>,
+    enc: terrain::EncodedTerrain,
     content: &str,
-    lods: u32,
 ) -> Result<(), CompileError> {
-    let enc = heightfield::encode(&heightfield::GridInput {
-        origin_m: r.origin,
-        cell_m: r.cell_m,
-        width: r.cols as u32,
-        height: r.rows as u32,
-        heights: &r.heights,
-        site_origin_m: [0.0; 3],
-        source,
-    })?;
-    let bounds = enc.meta.bounds();
+    let hf = &enc.heightfield;
+    let bounds = hf.meta.bounds();
     let tile = |files: BTreeMap<String, FileRef>| {
         vec![Tile {
             level: 0,
@@ -629,25 +639,25 @@ fn encode_raster(
     let files: BTreeMap<String, FileRef> = [
         (
             roles::HEIGHT.to_string(),
-            ctx.put(&enc.height_png, media::PNG)?,
+            ctx.put(&hf.height_png, media::PNG)?,
         ),
         (
             roles::HEIGHT_F32.to_string(),
-            ctx.put(&enc.height_exr, media::EXR)?,
+            ctx.put(&hf.height_exr, media::EXR)?,
         ),
-        (roles::MASK.to_string(), ctx.put(&enc.mask_png, media::PNG)?),
+        (roles::MASK.to_string(), ctx.put(&hf.mask_png, media::PNG)?),
     ]
     .into();
     ctx.entries.push(Entry {
         name: name.into(),
         kind: kinds::HEIGHTFIELD.into(),
-        meta: serde_json::to_value(&enc.meta)
+        meta: serde_json::to_value(&hf.meta)
             .map_err(|e| StageError::new("encode.heightfield", e.to_string()))?,
         files: BTreeMap::new(),
         tiles: tile(files),
     });
     let texture_entry = format!("{name}/texture");
-    if let Some(png_bytes) = &texture {
+    if let Some(png_bytes) = &enc.texture {
         let meta = TextureMeta {
             grid_of: name.into(),
             content: content.into(),
@@ -663,38 +673,17 @@ fn encode_raster(
             tiles: tile([(roles::IMAGE.to_string(), f)].into()),
         });
     }
-    let filled = heightfield::fill_holes(&r.heights, r.cols, r.rows);
     let mut lod_meta = Vec::new();
     let mut lod_files = BTreeMap::new();
-    let mut origin = [0.0; 3];
-    let builder = mesh_lod::LodBuilder::new(&filled, r.cols, r.rows, r.origin, r.cell_m);
-    for (n, (mut m, err)) in builder.lods(lods.max(1)).into_iter().enumerate() {
-        let triangles = (m.indices.len() / 3) as u64;
-        // Stop when the simplifier can go no further (the locked border bounds it).
-        if m.positions.len() < 4
-            || lod_meta
-                .last()
-                .is_some_and(|l: &LodMeta| triangles >= l.triangles)
-        {
-            break;
-        }
-        m.texture_png.clone_from(&texture);
-        origin = m.local_origin_m;
-        lod_meta.push(LodMeta {
-            vertices: m.positions.len() as u64,
-            triangles,
-            max_height_error_m: err,
-        });
-        lod_files.insert(
-            roles::lod(n as u32),
-            ctx.put(&glb::encode(&m)?, media::GLB)?,
-        );
+    for (n, (glb_bytes, meta)) in enc.lods.into_iter().enumerate() {
+        lod_files.insert(roles::lod(n as u32), ctx.put(&glb_bytes, media::GLB)?);
+        lod_meta.push(meta);
     }
     let meta = MeshMeta {
         frame: "ground".into(),
-        local_origin_m: origin,
+        local_origin_m: enc.local_origin_m,
         lods: lod_meta,
-        texture: texture.as_ref().map(|_| texture_entry),
+        texture: enc.texture.as_ref().map(|_| texture_entry),
     };
     ctx.entries.push(Entry {
         name: format!("{name}/mesh"),
@@ -708,7 +697,7 @@ fn encode_raster(
 
 /// Bumped whenever the pipeline's output bytes change for the same inputs (a stage's version,
 /// the entry layout, report contents), so the whole-compile cache never returns stale releases.
-pub const PIPELINE_VERSION: u32 = 7;
+pub const PIPELINE_VERSION: u32 = 8;
 
 fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
     let v = json!({"compiler": env!("CARGO_PKG_VERSION"), "pipeline": PIPELINE_VERSION, "name": opts.name,

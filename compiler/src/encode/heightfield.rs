@@ -87,17 +87,24 @@ pub fn fill_holes(heights: &[f32], width: usize, height: usize) -> Vec<f32> {
 
 /// Encodes a grid into its PNG, mask and EXR objects.
 pub fn encode(g: &GridInput<'_>) -> Result<EncodedHeightfield, EncodeError> {
+    encode_filled(
+        g,
+        &fill_holes(g.heights, g.width as usize, g.height as usize),
+    )
+}
+
+/// [`encode`] with the grid's [`fill_holes`] already computed (callers that also mesh it).
+pub fn encode_filled(g: &GridInput<'_>, filled: &[f32]) -> Result<EncodedHeightfield, EncodeError> {
     let (w, h) = (g.width as usize, g.height as usize);
-    if g.heights.len() != w * h || w == 0 || h == 0 {
+    if g.heights.len() != w * h || filled.len() != w * h || w == 0 || h == 0 {
         return Err(EncodeError::new(
             "heightfield",
             format!("{} values for {w}x{h}", g.heights.len()),
         ));
     }
-    let filled = fill_holes(g.heights, w, h);
     let valid: Vec<bool> = g.heights.iter().map(|v| v.is_finite()).collect();
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in &filled {
+    for v in filled {
         lo = lo.min(f64::from(*v));
         hi = hi.max(f64::from(*v));
     }

@@ -10,6 +10,7 @@ pub mod heightfield;
 pub mod mcap;
 pub mod mesh_lod;
 pub mod png;
+pub mod terrain;
 
 /// An encoding failure (a bug or an impossible size, never bad user input).
 #[derive(Debug, thiserror::Error)]

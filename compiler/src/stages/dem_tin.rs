@@ -10,7 +10,8 @@
 //!   is at most `max_edge_m` (the `dem.raster` hole limit; longer triangles span missing data and
 //!   no raster uses them), which is what lets strips give exactly those triangles. Deterministic:
 //!   the vertex/triangle lists are bit-identical run to run and for any thread count. Triangles
-//!   index our vertex array and are counter-clockwise seen from +z.
+//!   index our vertex array, are counter-clockwise seen from +z, start at their lowest vertex
+//!   index and are sorted (`canonical_order`: west to east, for cache-friendly passes).
 //! - Non-finite coordinates are an error naming the first bad point, never a spade panic.
 
 use rayon::prelude::*;
@@ -80,15 +81,20 @@ pub fn build_tin(
             ));
         }
     }
-    let mut order: Vec<usize> = (0..points.len()).collect();
-    let key = |i: usize| points.get(i).map_or([0.0; 3], |p| *p);
-    order.par_sort_unstable_by(|&a, &b| {
-        let (pa, pb) = (key(a), key(b));
-        pa[0]
-            .total_cmp(&pb[0])
-            .then(pa[1].total_cmp(&pb[1]))
-            .then(a.cmp(&b))
+    // Sorted as (x, y, index) values, not as indices compared through `points`: the sort then
+    // reads memory in order instead of two random points per comparison.
+    let mut keyed: Vec<(f64, f64, usize)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (p[0], p[1], i))
+        .collect();
+    keyed.par_sort_unstable_by(|a, b| {
+        a.0.total_cmp(&b.0)
+            .then(a.1.total_cmp(&b.1))
+            .then(a.2.cmp(&b.2))
     });
+    let order: Vec<usize> = keyed.into_par_iter().map(|k| k.2).collect();
+    let key = |i: usize| points.get(i).map_or([0.0; 3], |p| *p);
     let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut refl: Vec<f32> = Vec::new();
     let mut start = 0;
@@ -118,13 +124,26 @@ pub fn build_tin(
     let duplicates_merged = points.len() - vertices.len();
     u32::try_from(vertices.len())
         .map_err(|_| format!("{} vertices, expected at most {}", vertices.len(), u32::MAX))?;
-    let triangles = triangulate(&vertices, max_edge_m)?;
+    let mut triangles = triangulate(&vertices, max_edge_m)?;
+    canonical_order(&mut triangles);
     Ok(Tin {
         vertices,
         albedo: albedo.map(|_| refl),
         triangles,
         duplicates_merged,
     })
+}
+
+/// Puts every triangle's lowest vertex index first (a rotation, so still counter-clockwise) and
+/// sorts the triangles: one order whatever way the triangulation was built, and, the vertices
+/// being x-sorted, a west-to-east one, so that a pass over the triangles reads the vertex array
+/// almost sequentially (`dem.raster`).
+fn canonical_order(triangles: &mut [[u32; 3]]) {
+    triangles.par_iter_mut().for_each(|t| {
+        let lowest = (0..3).min_by_key(|&k| t[k]).unwrap_or(0);
+        t.rotate_left(lowest);
+    });
+    triangles.par_sort_unstable();
 }
 
 /// Stage `dem.tin` (the duplicate rule is fixed, see the module doc).
@@ -136,7 +155,7 @@ pub struct DemTin {
 
 impl Stage for DemTin {
     const NAME: &'static str = "dem.tin";
-    const VERSION: u32 = 3;
+    const VERSION: u32 = 4;
     const DESCRIPTION: &'static str =
         "Delaunay TIN of the merged ground points in (x, y); (x, y) duplicates keep the mean z";
     type Input = MergedCloud;
