@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
-# Exports every mesh entry of a release and runs the Khronos glTF-Validator on each LOD.
-# Usage: tools/gltf/check_release.sh REGOLITH_BIN DB RELEASE   (validator: npm install --prefix tools/gltf)
+# Exports every mesh entry of a release and checks each LOD with the Khronos glTF-Validator
+# (default) or by importing it into Blender (`blender`: Blender's own glTF importer, headless;
+# see blender_import.py for what is compared).
+# Usage: tools/gltf/check_release.sh REGOLITH_BIN DB RELEASE [validator|blender]
+#   (validator: npm install --prefix tools/gltf; blender: apt-get install blender)
 set -euo pipefail
-bin=$1 db=$2 release=$3
+bin=$1 db=$2 release=$3 tool=${4:-validator}
 here=$(cd "$(dirname "$0")" && pwd)
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
@@ -16,4 +19,9 @@ for m in $meshes; do
   "$bin" export "$db" "$release" "$m" --to "$dir" >/dev/null
   files+=("$dir"/*.glb)
 done
-node "$here/validate.mjs" "${files[@]}"
+case "$tool" in
+  validator) node "$here/validate.mjs" "${files[@]}" ;;
+  blender) blender --background --factory-startup --python "$here/blender_import.py" -- "${files[@]}" 2>&1 |
+    grep -E '^(blender |[0-9]+ of |Error|Traceback)' ; exit "${PIPESTATUS[0]}" ;;
+  *) echo "unknown check '$tool', expected validator or blender" >&2; exit 2 ;;
+esac

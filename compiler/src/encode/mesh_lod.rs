@@ -77,7 +77,7 @@ impl<'a> LodBuilder<'a> {
                 // Unreachable (12-byte stride, whole vertices); keep the mesh rather than fail.
                 Err(_) => previous.clone(),
             };
-            levels.push(simplified);
+            levels.push(drop_coincident(&m.positions, simplified));
         }
         let mut out = Vec::with_capacity(levels.len() + 1);
         if count > 0 {
@@ -211,6 +211,55 @@ fn nearest_plane_z(tris: &[[(i64, i64, f64); 3]], c: i64, r: i64) -> Option<f64>
 
 /// The mesh of `indices` (into `m`'s vertices) with unused vertices dropped, the kept ones in
 /// their original order, UVs kept and normals recomputed as [`glb::grid_mesh`] does.
+/// Removes coincident triangles: the simplifier can fold two triangles onto the same three
+/// vertices (a zero-volume pillow, usually with opposite windings). Blender's importer drops
+/// such duplicates and renderers z-fight on them. Of each group the first upward-facing
+/// (counter-clockwise seen from +z) triangle is kept, else the first; order is otherwise kept.
+fn drop_coincident(positions: &[[f32; 3]], indices: Vec<u32>) -> Vec<u32> {
+    let tris: Vec<[u32; 3]> = indices
+        .chunks_exact(3)
+        .map(|t| [t[0], t[1], t[2]])
+        .collect();
+    let mut keyed: Vec<([u32; 3], usize)> = tris
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let mut k = *t;
+            k.sort_unstable();
+            (k, i)
+        })
+        .collect();
+    keyed.sort_unstable();
+    if keyed.windows(2).all(|w| w[0].0 != w[1].0) {
+        return indices;
+    }
+    let up = |t: &[u32; 3]| {
+        let p = |k: usize| positions.get(t[k] as usize).copied().unwrap_or_default();
+        let (a, b, c) = (p(0), p(1), p(2));
+        let cross = f64::from(b[0] - a[0]) * f64::from(c[1] - a[1])
+            - f64::from(b[1] - a[1]) * f64::from(c[0] - a[0]);
+        cross > 0.0
+    };
+    let mut keep = vec![true; tris.len()];
+    for group in keyed.chunk_by(|a, b| a.0 == b.0).filter(|g| g.len() > 1) {
+        let chosen = group
+            .iter()
+            .find(|(_, i)| tris.get(*i).is_some_and(up))
+            .unwrap_or(&group[0])
+            .1;
+        for &(_, i) in group {
+            if let Some(k) = keep.get_mut(i) {
+                *k = i == chosen;
+            }
+        }
+    }
+    tris.iter()
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .flat_map(|(t, _)| *t)
+        .collect()
+}
+
 fn compact(m: &GlbMesh, indices: &[u32]) -> GlbMesh {
     let mut used = vec![false; m.positions.len()];
     for &i in indices {
@@ -258,6 +307,40 @@ mod tests {
             }
         }
         (z, w, h)
+    }
+
+    #[test]
+    fn coincident_triangles_keep_one_upward_face() {
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.5],
+        ];
+        // Triangle 1 is triangle 2 folded back (clockwise from above).
+        let fold = vec![1, 3, 2, 0, 2, 1, 0, 1, 2];
+        assert_eq!(drop_coincident(&p, fold), vec![1, 3, 2, 0, 1, 2]);
+        let both_down = vec![0, 2, 1, 2, 1, 0];
+        assert_eq!(drop_coincident(&p, both_down), vec![0, 2, 1]);
+        let clean = vec![0, 1, 2, 1, 3, 2];
+        assert_eq!(drop_coincident(&p, clean.clone()), clean);
+        // Every level of a real terrain is free of them.
+        let (z, w, h) = terrain();
+        for (m, _) in LodBuilder::new(&z, w, h, [0.0, 0.0], 0.05).lods(4) {
+            let mut keys: Vec<[u32; 3]> = m
+                .indices
+                .chunks_exact(3)
+                .map(|t| {
+                    let mut k = [t[0], t[1], t[2]];
+                    k.sort_unstable();
+                    k
+                })
+                .collect();
+            let n = keys.len();
+            keys.sort_unstable();
+            keys.dedup();
+            assert_eq!(keys.len(), n);
+        }
     }
 
     #[test]
