@@ -150,6 +150,7 @@ fn main() {
         albedo: Some(albedo),
         triangles: vec![],
         duplicates_merged: 0,
+        max_edge_m: None,
     };
     println!(
         "{} points over {:.3} x {:.3} m, median TIN edge {:.2} mm, {} threads, input {:.1} s",

@@ -141,8 +141,9 @@ fn hash_inputs(c: &Campaign) -> Result<Vec<InputFile>, CompileError> {
     files.push("campaign.toml".into());
     files.sort();
     files.dedup();
+    // Files are read and hashed in parallel (a full-resolution survey is ~1 GB of scans).
     files
-        .iter()
+        .par_iter()
         .map(|rel| {
             let bytes = std::fs::read(c.root.join(rel))
                 .map_err(|e| IngestError::Io(e).in_file(c.root.join(rel)))?;
@@ -470,6 +471,7 @@ fn sfm_terrain(
             albedo: colour,
             triangles: mesh.triangles.clone(),
             duplicates_merged: 0,
+            max_edge_m: None,
         };
         let raster = DemRaster::new(
             t.raster_m.clone(),
@@ -588,8 +590,14 @@ fn encode_rasters(
     lods: u32,
     mut dem_out: Option<&mut Vec<Value>>,
 ) -> Result<(), CompileError> {
-    let encoded = rasters
+    // Largest raster first, one task each: the finest grid's LOD chain is the longest single
+    // piece of work, so it starts at once while the other rasters share the other threads.
+    let mut order: Vec<usize> = (0..rasters.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(rasters.get(i).map_or(0, |r| r.rows * r.cols)));
+    let by_size = order
         .par_iter()
+        .with_max_len(1)
+        .filter_map(|&i| rasters.get(i))
         .map(|r| {
             let png = match texture {
                 Some(_) => albedo_png(r)?,
@@ -607,7 +615,13 @@ fn encode_rasters(
             Ok(terrain::encode(&grid, png, lods)?)
         })
         .collect::<Result<Vec<_>, CompileError>>()?;
-    for (r, enc) in rasters.iter().zip(encoded) {
+    let mut encoded: Vec<Option<terrain::EncodedTerrain>> = rasters.iter().map(|_| None).collect();
+    for (&i, e) in order.iter().zip(by_size) {
+        if let Some(slot) = encoded.get_mut(i) {
+            *slot = Some(e);
+        }
+    }
+    for (r, enc) in rasters.iter().zip(encoded.into_iter().flatten()) {
         let name = format!("{terrain}/{}", cell_label(r.cell_m));
         store_raster(ctx, &name, enc, texture.unwrap_or_default())?;
         if let Some(rows) = dem_out.as_deref_mut() {

@@ -200,8 +200,8 @@ impl PointGrid {
 /// One strip's triangles: kept outright (`false`) or needing the grid check (`true`).
 type StripTriangles = Vec<([u32; 3], bool)>;
 
-/// The longest horizontal edge of a triangle.
-fn longest_edge(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+/// The longest horizontal edge of a triangle (the hole rule of `dem.tin` and `dem.raster`).
+pub(super) fn longest_edge(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     let d = |p: [f64; 3], q: [f64; 3]| (p[0] - q[0]).hypot(p[1] - q[1]);
     d(a, b).max(d(b, c)).max(d(c, a))
 }

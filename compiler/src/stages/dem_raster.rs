@@ -32,6 +32,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::delaunay::longest_edge;
 use super::dem_regress::regress;
 use super::dem_tin::Tin;
 use super::geometry::median;
@@ -278,6 +279,8 @@ fn corners(tin: &Tin, t: &[u32; 3]) -> Option<[[f64; 3]; 3]> {
 /// every read to a random place of a vertex array of hundreds of megabytes. Only an index is
 /// kept per triangle (not a copy of its corners: 4 bytes instead of ~100, 3.7 GB on ESTEC).
 fn prepare(tin: &Tin, max_edge_m: f64) -> Vec<u32> {
+    // The TIN's own bound already keeps every edge within the limit (same measure).
+    let checked = tin.max_edge_m.is_some_and(|m| m <= max_edge_m);
     let mut keys: Vec<u64> = tin
         .triangles
         .par_iter()
@@ -287,7 +290,7 @@ fn prepare(tin: &Tin, max_edge_m: f64) -> Vec<u32> {
             let i = u32::try_from(i).ok()?;
             let p = corners(tin, t)?;
             let [a, b, c] = p;
-            if dist2d(a, b).max(dist2d(b, c)).max(dist2d(c, a)) > max_edge_m {
+            if !checked && longest_edge(a, b, c) > max_edge_m {
                 return None;
             }
             inv_det(&p)?;

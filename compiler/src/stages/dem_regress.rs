@@ -656,6 +656,7 @@ mod tests {
             vertices,
             triangles: vec![],
             duplicates_merged: 0,
+            max_edge_m: None,
         }
     }
 
@@ -712,6 +713,7 @@ mod tests {
             albedo: None,
             triangles: vec![],
             duplicates_merged: 0,
+            max_edge_m: None,
         };
         let mut r = raster_over(0.01, 0.8);
         r.albedo = None;
@@ -749,6 +751,7 @@ mod tests {
             albedo: None,
             triangles: vec![],
             duplicates_merged: 0,
+            max_edge_m: None,
         };
         let mut r = raster_over(0.01, 0.8);
         r.albedo = None;
@@ -809,6 +812,7 @@ mod tests {
             albedo: Some(albedo.clone()),
             triangles: vec![],
             duplicates_merged: 0,
+            max_edge_m: None,
         };
         // The same TIN x-sorted, as `dem.tin` leaves it.
         let mut order: Vec<usize> = (0..vertices.len()).collect();

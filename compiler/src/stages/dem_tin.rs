@@ -33,6 +33,10 @@ pub struct Tin {
     pub triangles: Vec<[u32; 3]>,
     /// Input points merged into another one because they shared (x, y).
     pub duplicates_merged: usize,
+    /// A bound every triangle's longest horizontal edge is known to respect (`dem.tin`'s limit,
+    /// measured as `dem.raster` measures it), so a raster with a limit at least as long need not
+    /// check each triangle again; `None`: unknown.
+    pub max_edge_m: Option<f64>,
 }
 
 /// Statistics of a TIN.
@@ -81,46 +85,50 @@ pub fn build_tin(
             ));
         }
     }
-    // Sorted as (x, y, index) values, not as indices compared through `points`: the sort then
-    // reads memory in order instead of two random points per comparison.
-    let mut keyed: Vec<(f64, f64, usize)> = points
+    // Sorted as (x, y, index) records carrying z and albedo, not as indices compared through
+    // `points`: the sort and the merge below then read memory in order instead of jumping to a
+    // random point for every comparison and every value.
+    struct Rec {
+        x: f64,
+        y: f64,
+        z: f64,
+        albedo: f32,
+        index: u32,
+    }
+    u32::try_from(points.len())
+        .map_err(|_| format!("{} points, expected at most {}", points.len(), u32::MAX))?;
+    let mut recs: Vec<Rec> = points
         .par_iter()
-        .enumerate()
-        .map(|(i, p)| (p[0], p[1], i))
+        .zip(0u32..u32::MAX)
+        .map(|(p, index)| Rec {
+            x: p[0],
+            y: p[1],
+            z: p[2],
+            albedo: albedo
+                .and_then(|r| r.get(index as usize))
+                .copied()
+                .unwrap_or(0.0),
+            index,
+        })
         .collect();
-    keyed.par_sort_unstable_by(|a, b| {
-        a.0.total_cmp(&b.0)
-            .then(a.1.total_cmp(&b.1))
-            .then(a.2.cmp(&b.2))
+    recs.par_sort_unstable_by(|a, b| {
+        a.x.total_cmp(&b.x)
+            .then(a.y.total_cmp(&b.y))
+            .then(a.index.cmp(&b.index))
     });
-    let order: Vec<usize> = keyed.into_par_iter().map(|k| k.2).collect();
-    let key = |i: usize| points.get(i).map_or([0.0; 3], |p| *p);
     let mut vertices: Vec<[f64; 3]> = Vec::new();
     let mut refl: Vec<f32> = Vec::new();
-    let mut start = 0;
-    while start < order.len() {
-        let first = key(order.get(start).copied().unwrap_or(0));
-        let mut end = start + 1;
-        while order.get(end).is_some_and(|&i| {
-            let p = key(i);
-            p[0] == first[0] && p[1] == first[1]
-        }) {
-            end += 1;
-        }
-        let group = order.get(start..end).unwrap_or(&[]);
+    for group in recs.chunk_by(|a, b| a.x == b.x && a.y == b.y) {
+        let Some(first) = group.first() else { continue };
         let n = group.len() as f64;
-        let z = group.iter().map(|&i| key(i)[2]).sum::<f64>() / n;
-        vertices.push([first[0], first[1], z]);
-        if let Some(r) = albedo {
-            let m = group
-                .iter()
-                .map(|&i| f64::from(r.get(i).copied().unwrap_or(0.0)))
-                .sum::<f64>()
-                / n;
+        let z = group.iter().map(|r| r.z).sum::<f64>() / n;
+        vertices.push([first.x, first.y, z]);
+        if albedo.is_some() {
+            let m = group.iter().map(|r| f64::from(r.albedo)).sum::<f64>() / n;
             refl.push(m as f32);
         }
-        start = end;
     }
+    drop(recs);
     let duplicates_merged = points.len() - vertices.len();
     u32::try_from(vertices.len())
         .map_err(|_| format!("{} vertices, expected at most {}", vertices.len(), u32::MAX))?;
@@ -131,6 +139,7 @@ pub fn build_tin(
         albedo: albedo.map(|_| refl),
         triangles,
         duplicates_merged,
+        max_edge_m: max_edge_m.is_finite().then_some(max_edge_m),
     })
 }
 

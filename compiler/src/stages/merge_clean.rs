@@ -29,18 +29,19 @@
 //! - **Cross-scan radiometric calibration**: [`radiometry`] fits the instrument's residual range
 //!   dependence of the reflectance and a per-scan offset on the overlaps and divides them out of
 //!   `reflectance` and `albedo`, so stations agree where they see the same ground.
-//! - **One neighbour index** ([`KnnIndex`]) over the merged cloud serves the SOR pass; queries
-//!   run in the index's leaf order and are put back in merged order, so results do not depend
-//!   on the thread count (the SOR means depend on the neighbour distances only, which are
-//!   kiddo's bit for bit).
+//! - **The SOR neighbours come from a grid of vertical columns** ([`map_self_knn`]): a terrain
+//!   cloud is a 2.5-D surface, and reading the 3 × 3 cells around each point beats a kd-tree
+//!   descent per point; the distances are exact (bit for bit those of a kd-tree), so the means
+//!   do not depend on the method or the thread count.
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::geometry::{mean_std, translation_part, KnnIndex, Neighbour};
+use super::geometry::{mean_std, translation_part};
 use super::incidence::{self, incidence_albedo};
 use super::radiometry::{self, RadiometricCalibration};
+use super::self_knn::map_self_knn;
 use crate::ingest::types::{transform, Matrix4, PointCloud};
 use crate::stage::{Stage, StageCx, StageError};
 
@@ -214,20 +215,7 @@ impl MergeClean {
         all.reflectance_db = db;
         all.reflectance = rho;
         all.stats.input_points = all.points.len();
-        // One index for both neighbourhood passes (the points are finite: checked above).
-        let index = KnnIndex::new(&all.points);
-        if index.is_none() && !all.points.is_empty() {
-            return Err(StageError::new(
-                Self::NAME,
-                format!(
-                    "{} merged points, expected at most {}",
-                    all.points.len(),
-                    u32::MAX
-                ),
-            ));
-        }
-        let keep = self.outlier_mask(index.as_ref(), all.points.len(), &mut all.stats);
-        drop(index);
+        let keep = self.outlier_mask(&all.points, &mut all.stats)?;
         let mut idx: Vec<usize> = (0..all.points.len())
             .filter(|&i| keep.get(i) == Some(&true))
             .collect();
@@ -251,36 +239,33 @@ impl MergeClean {
         Ok(out)
     }
 
-    /// `true` for points kept by the statistical outlier filter (`n` points, `index` over them).
+    /// `true` for points kept by the statistical outlier filter.
     fn outlier_mask(
         &self,
-        index: Option<&KnnIndex>,
-        n: usize,
+        points: &[[f64; 3]],
         stats: &mut MergeStats,
-    ) -> Vec<bool> {
-        let Some(index) = index.filter(|ix| self.sor_k > 0 && ix.len() > self.sor_k) else {
-            return vec![true; n];
-        };
-        let k = self.sor_k + 1;
-        // Queries in leaf order (memory touched in order), results back in merged order.
-        let leaf_means: Vec<f64> = index
-            .points()
-            .par_iter()
-            .map_init(
-                || Vec::with_capacity(k),
-                |nb: &mut Vec<Neighbour>, p| {
-                    index.knn(p, k, None, nb);
-                    nb.iter().skip(1).map(|x| x.d2.sqrt()).sum::<f64>() / self.sor_k as f64
-                },
+    ) -> Result<Vec<bool>, StageError> {
+        if self.sor_k == 0 || points.len() <= self.sor_k {
+            return Ok(vec![true; points.len()]);
+        }
+        let means = map_self_knn(points, self.sor_k + 1, |d2| {
+            d2.iter().skip(1).map(|d| d.sqrt()).sum::<f64>() / self.sor_k as f64
+        })
+        .ok_or_else(|| {
+            StageError::new(
+                Self::NAME,
+                format!(
+                    "{} merged points, expected at most {}",
+                    points.len(),
+                    u32::MAX
+                ),
             )
-            .collect();
-        let means = index.to_build_order(&leaf_means);
-        drop(leaf_means);
+        })?;
         let (mean, std) = mean_std(&means);
         stats.sor_mean_m = mean;
         stats.sor_std_m = std;
         let limit = mean + self.sor_n_std * std;
-        means.iter().map(|&m| m <= limit).collect()
+        Ok(means.iter().map(|&m| m <= limit).collect())
     }
 }
 

@@ -10,5 +10,6 @@ pub mod merge_clean;
 pub mod radiometry;
 pub mod register_icp;
 pub mod register_tiepoints;
+pub mod self_knn;
 pub mod sfm_align;
 pub mod sfm_features;

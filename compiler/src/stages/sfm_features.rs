@@ -556,6 +556,7 @@ pub fn compare_heights(
         albedo: None,
         triangles: triangles.to_vec(),
         duplicates_merged: 0,
+        max_edge_m: None,
     };
     let sfm = raster
         .rasterize_all(&tin)
