@@ -480,6 +480,7 @@ impl AlignSfm {
             reject_factor: p.reject_factor,
             score_fraction: p.score_fraction,
             tol_m,
+            horizontal: !coarse && with_scale,
         }
     }
 
@@ -577,7 +578,7 @@ impl AlignSfm {
 
 impl Stage for AlignSfm {
     const NAME: &'static str = "sfm.align";
-    const VERSION: u32 = 1;
+    const VERSION: u32 = 2;
     const DESCRIPTION: &'static str =
         "Align an SfM mesh (arbitrary similarity frame) to the laser cloud or control points: coarse search + scaled ICP; height-difference report";
     type Input = AlignInput;

@@ -21,8 +21,11 @@
 //!   scored by a short ICP run in `sfm_align`, which is more robust on smooth terrain than
 //!   FPFH-style local descriptors and needs no tuning radius in unknown units.
 //! - **ICP** is point-to-plane with scale, solved by Gauss–Newton (7 unknowns: rotation, translation,
-//!   log-scale). Each iteration pairs every SfM sample with its nearest laser sample and that
-//!   sample's local plane (normal and centroid of `normal_k` neighbours, computed once; the
+//!   log-scale). Each iteration pairs every SfM sample with its nearest laser sample — in the
+//!   final run, when it solves the scale, the nearest in (x, y), once "up" is the ground's z: the SfM noise is mostly
+//!   vertical, and with 3-D pairing it picks the laser sample (on ten mini seeds the scale error
+//!   went from −0.48 % mean, 7 of 10 beyond 0.5 %, to −0.21 %, 2 of 10; estec stays within
+//!   0.005 %) — and that sample's local plane (normal and centroid of `normal_k` neighbours, computed once; the
 //!   centroid averages the range noise: 0.76 % → 0.42 % scale error on the mini corpus) and drops pairs ending on the laser's
 //!   boundary (outer edge, occlusion holes: an SfM point hanging over an edge would otherwise pull
 //!   the scale down) and pairs beyond `reject_factor` × the median distance (SfM areas the laser
@@ -235,6 +238,8 @@ pub struct Target {
     /// Centroid of the samples (the pivot of the Gauss–Newton steps).
     centroid: Vector3<f64>,
     tree: Tree3,
+    /// The samples' (x, y), for horizontal pairing.
+    tree_xy: kiddo::ImmutableKdTree<f64, 2>,
 }
 
 /// A laser sample's local plane: unit normal and neighbourhood centroid.
@@ -284,6 +289,11 @@ pub struct IcpSettings {
     pub score_fraction: f64,
     /// Convergence: RMS motion of the paired samples in one step, metres.
     pub tol_m: f64,
+    /// Pair each sample with the laser sample nearest in (x, y) rather than in 3D (the final
+    /// run when it solves the scale, once "up" is the ground's z): the SfM noise is mostly
+    /// vertical, and with 3D pairing it decides which laser sample a point is paired with,
+    /// which biases the scale.
+    pub horizontal: bool,
 }
 
 impl Target {
@@ -319,12 +329,15 @@ impl Target {
             .map(|p| Vector3::from(*p))
             .sum::<Vector3<f64>>()
             / points.len() as f64;
+        let xy: Vec<[f64; 2]> = points.iter().map(|p| [p[0], p[1]]).collect();
+        let tree_xy = kiddo::ImmutableKdTree::new_from_slice(&xy);
         Some(Target {
             points,
             planes,
             boundary,
             centroid,
             tree,
+            tree_xy,
         })
     }
 
@@ -336,13 +349,23 @@ impl Target {
         src: &[[f64; 3]],
         sim: &Similarity,
         reject_factor: f64,
+        horizontal: bool,
     ) -> (Vec<Pair>, Vec<f64>) {
         let all: Vec<Option<(f64, Option<Pair>)>> = src
             .par_iter()
             .enumerate()
             .map(|(i, p)| {
                 let x = Vector3::from(sim.apply(*p));
-                let (j, nearest) = *knn(&self.tree, &x.into(), 1).first()?;
+                let (j, nearest) = if horizontal {
+                    let nn = self
+                        .tree_xy
+                        .nearest_one::<kiddo::SquaredEuclidean>(&[x.x, x.y]);
+                    let j = usize::try_from(nn.item).ok()?;
+                    let q = Vector3::from(*self.points.get(j)?);
+                    (j, (x - q).norm())
+                } else {
+                    *knn(&self.tree, &x.into(), 1).first()?
+                };
                 let interior = !self.boundary.get(j).copied().unwrap_or(true);
                 let pair = self
                     .planes
@@ -432,7 +455,7 @@ impl Target {
         let mut sim = init;
         let (mut done, mut converged) = (0, false);
         while done < s.iterations {
-            let (pairs, _) = self.pairs(src, &sim, s.reject_factor);
+            let (pairs, _) = self.pairs(src, &sim, s.reject_factor, s.horizontal);
             let Some(step) = self.gauss_newton(&pairs, s.with_scale) else {
                 break;
             };
@@ -449,7 +472,7 @@ impl Target {
                 break;
             }
         }
-        let (pairs, mut nearest) = self.pairs(src, &sim, s.reject_factor);
+        let (pairs, mut nearest) = self.pairs(src, &sim, s.reject_factor, s.horizontal);
         let plane: Vec<f64> = pairs.iter().map(|p| p.plane).collect();
         let near: Vec<f64> = pairs.iter().map(|p| p.nearest).collect();
         IcpRun {
