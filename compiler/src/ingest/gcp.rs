@@ -28,7 +28,8 @@ use std::path::Path;
 
 use regolith_format::limits::Limits;
 
-use super::riscan_ascii::{fields, is_blank, lines, number, parse_f64, read_file, show, Delim};
+use super::riscan_ascii::{number, read_file, show};
+use super::tiepoints::{named_rows, NamedRow};
 use super::types::NamedPoint;
 use crate::error::{IngestError, Result};
 
@@ -87,28 +88,17 @@ pub fn read_gcp(bytes: &[u8], limits: &Limits) -> Result<Vec<GcpMarker>> {
         limits.max_object_bytes,
     )?;
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-    let mut delim = None;
-    let mut first_row = true;
     let mut out: Vec<GcpMarker> = Vec::new();
     let mut seen: BTreeMap<String, u64> = BTreeMap::new();
-    for (line_no, _, line) in lines(bytes) {
-        if is_blank(line) || line.first() == Some(&b'#') {
-            continue;
-        }
-        let d = *delim
-            .get_or_insert_with(|| Delim::sniff_among(line, b"\t;,").unwrap_or(Delim::Whitespace));
-        let mut f = fields(line, d);
-        let name = show(f.next().unwrap_or_default())
-            .trim_matches('"')
-            .trim()
-            .to_string();
-        // The label and at most 7 more fields: an 8th says "more than 7" well enough.
-        let values: Vec<&[u8]> = f.take(7).collect();
-        let is_header = first_row && values.first().is_some_and(|c| parse_f64(c).is_none());
-        first_row = false;
-        if is_header {
-            continue;
-        }
+    // The label and at most 7 more fields: an 8th says "more than 7" well enough.
+    for row in named_rows(bytes, 7) {
+        let NamedRow {
+            line_no,
+            delim: d,
+            line,
+            name,
+            values,
+        } = row;
         let err_at = |e: IngestError| e.at_line(line_no);
         let n = values.len() + 1;
         if n != 4 && n != 7 {

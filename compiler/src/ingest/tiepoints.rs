@@ -18,16 +18,29 @@ use super::riscan_ascii::{fields, is_blank, lines, number, parse_f64, read_file,
 use super::types::NamedPoint;
 use crate::error::{IngestError, Result};
 
-/// Reads a tie-point table.
-pub fn read_tiepoints(bytes: &[u8], limits: &Limits) -> Result<Vec<NamedPoint>> {
-    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+/// One data row of a `Name, v1, v2, …` table.
+pub(crate) struct NamedRow<'a> {
+    /// 1-based line number.
+    pub line_no: u64,
+    /// The table's delimiter.
+    pub delim: Delim,
+    /// The whole line.
+    pub line: &'a [u8],
+    /// Field 1, quotes and surrounding spaces trimmed.
+    pub name: String,
+    /// The fields after the name, at most the `max_values` asked for.
+    pub values: Vec<&'a [u8]>,
+}
+
+/// The data rows of a named-point table (tie points, control points): blank and `#` lines
+/// skipped, the delimiter sniffed from the first row (tab, `;`, `,`, else whitespace), a first
+/// row whose second field is not a number skipped as a header. `bytes` without a UTF-8 BOM.
+pub(crate) fn named_rows(bytes: &[u8], max_values: usize) -> impl Iterator<Item = NamedRow<'_>> {
     let mut delim = None;
     let mut first_row = true;
-    let mut out = Vec::new();
-    let mut seen: BTreeMap<String, u64> = BTreeMap::new();
-    for (line_no, _, line) in lines(bytes) {
+    lines(bytes).filter_map(move |(line_no, _, line)| {
         if is_blank(line) || line.first() == Some(&b'#') {
-            continue;
+            return None;
         }
         let d = *delim
             .get_or_insert_with(|| Delim::sniff_among(line, b"\t;,").unwrap_or(Delim::Whitespace));
@@ -36,12 +49,32 @@ pub fn read_tiepoints(bytes: &[u8], limits: &Limits) -> Result<Vec<NamedPoint>> 
             .trim_matches('"')
             .trim()
             .to_string();
-        let coords: Vec<&[u8]> = f.take(3).collect();
-        let is_header = first_row && coords.first().is_some_and(|c| parse_f64(c).is_none());
+        let values: Vec<&[u8]> = f.take(max_values).collect();
+        let is_header = first_row && values.first().is_some_and(|c| parse_f64(c).is_none());
         first_row = false;
-        if is_header {
-            continue;
-        }
+        (!is_header).then_some(NamedRow {
+            line_no,
+            delim: d,
+            line,
+            name,
+            values,
+        })
+    })
+}
+
+/// Reads a tie-point table.
+pub fn read_tiepoints(bytes: &[u8], limits: &Limits) -> Result<Vec<NamedPoint>> {
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let mut out = Vec::new();
+    let mut seen: BTreeMap<String, u64> = BTreeMap::new();
+    for row in named_rows(bytes, 3) {
+        let NamedRow {
+            line_no,
+            delim: d,
+            line,
+            name,
+            values: coords,
+        } = row;
         let err_at = |e: IngestError| e.at_line(line_no);
         if coords.len() != 3 {
             let found = format!("{} fields: {}", coords.len() + 1, show(line));
