@@ -13,3 +13,4 @@ pub mod register_tiepoints;
 pub mod self_knn;
 pub mod sfm_align;
 pub mod sfm_features;
+pub mod sfm_height_fit;

@@ -11,8 +11,11 @@
 //!   Scale is held fixed there because a free scale lets a wrong orientation shrink onto a
 //!   small patch and score well.
 //! - **Scaled ICP to convergence** from that start (fixed scale with control points, below):
-//!   trimmed nearest-neighbour pairs, foot points on the laser's local planes, Umeyama with
-//!   scale per iteration (see `sfm_features`).
+//!   trimmed nearest-neighbour pairs, foot points on the laser's local planes, a Gauss–Newton
+//!   step with scale per iteration (see `sfm_features`). Without control points it is followed
+//!   by the height fit of `sfm_height_fit` (SfM heights against a smooth laser height surface),
+//!   which settles where ICP on nearest samples jitters: on 18 mini seeds the laser-only scale
+//!   error went from −0.96 … +0.29 % (3 beyond 0.5 %) to −0.16 … +0.38 %.
 //! - **Control points fix the scale** (`control+laser`): the laser then refines rotation and
 //!   translation only. Scaled ICP of a smoothed, noisy SfM surface onto the laser drifts the
 //!   scale: on five `mini` corpus campaigns (seeds 7, 11, 42, 2024, 2025) the compiled laser
@@ -45,8 +48,14 @@ use super::sfm_features::{
     candidates, compare_heights, thin, IcpRun, IcpSettings, PcaFrame, Target,
 };
 pub use super::sfm_features::{DifferenceGrid, HeightComparison, Histogram};
+use super::sfm_height_fit::{fit, HeightFitSettings, HeightSurface};
 use crate::ingest::types::{Matrix4, TriMesh};
 use crate::stage::{Stage, StageCx, StageError};
+
+/// Laser points per cell of the height surface of the final fit.
+const HEIGHT_CELL_POINTS: f64 = 20.0;
+/// Steepest laser cell (|∇h|) the height fit uses.
+const MAX_SLOPE: f64 = 1.0;
 
 /// SfM → ground similarity: `p_ground = scale · rotation · p_sfm + translation`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -238,6 +247,21 @@ pub struct IcpReport {
     pub samples: [usize; 2],
 }
 
+/// The final fit of the SfM heights to the laser height surface (see `sfm_height_fit`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeightFitReport {
+    /// Cell of the laser height surface, metres.
+    pub cell_m: f64,
+    /// RMS height residual of the kept samples, metres.
+    pub rms_m: f64,
+    /// Kept samples.
+    pub inliers: usize,
+    /// Iterations run.
+    pub iterations: usize,
+    /// True when the motion fell below the threshold before the iteration limit.
+    pub converged: bool,
+}
+
 /// How the start was found without control points.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CoarseReport {
@@ -296,6 +320,8 @@ pub struct AlignReport {
     pub coarse: Option<CoarseReport>,
     /// Final ICP (when a laser cloud was given).
     pub icp: Option<IcpReport>,
+    /// Final height fit (laser alignment without control points).
+    pub height_fit: Option<HeightFitReport>,
     /// Control points (when given).
     pub control: Option<ControlReport>,
     /// Height comparison (when a laser cloud was given).
@@ -382,11 +408,11 @@ impl AlignSfm {
                 })?)
             }
         };
-        let (similarity, coarse, icp, method) = if laser.is_empty() {
+        let (similarity, coarse, icp, height_fit, method) = if laser.is_empty() {
             let sim = by_control.ok_or_else(|| {
                 err("no laser points and no control points; expected one of them".into())
             })?;
-            (sim, None, None, "control")
+            (sim, None, None, None, "control")
         } else {
             let (src, _) = thin(&mesh.positions, p.samples)
                 .ok_or_else(|| err("SfM mesh is degenerate (flat in two directions)".into()))?;
@@ -418,7 +444,13 @@ impl AlignSfm {
                 converged: run.converged,
                 samples: [src.len(), target.points.len()],
             };
-            (run.sim, coarse, Some(report), method)
+            // Without control points the scale comes from the laser: finish on its height
+            // surface (see `sfm_height_fit`).
+            let (sim, height_fit) = match by_control {
+                Some(_) => (run.sim, None),
+                None => self.height_fit(cx, laser, &src, run.sim, &target, tol),
+            };
+            (sim, coarse, Some(report), height_fit, method)
         };
         let control = (!control.is_empty()).then(|| {
             let residuals_m: Vec<(String, f64)> = control
@@ -457,6 +489,7 @@ impl AlignSfm {
             angles,
             coarse,
             icp,
+            height_fit,
             control,
             heights,
         };
@@ -465,6 +498,45 @@ impl AlignSfm {
             report,
             difference,
         })
+    }
+
+    /// The height fit from the scaled ICP's result `init`, on cells of about
+    /// `HEIGHT_CELL_POINTS` laser points. Falls back to `init` (with a warning) when the surface
+    /// cannot be built.
+    fn height_fit(
+        &self,
+        cx: &StageCx,
+        laser: &[[f64; 3]],
+        src: &[[f64; 3]],
+        init: Similarity,
+        target: &Target,
+        tol: f64,
+    ) -> (Similarity, Option<HeightFitReport>) {
+        let p = &self.params;
+        let Some(surface) = HeightSurface::new(laser, HEIGHT_CELL_POINTS, MAX_SLOPE, p.max_cells)
+        else {
+            cx.reporter.warn(
+                Self::NAME,
+                "sfm-height-fit",
+                "the laser height surface could not be built; keeping the ICP result",
+            );
+            return (init, None);
+        };
+        let settings = HeightFitSettings {
+            iterations: p.iterations,
+            with_scale: true,
+            reject_factor: p.reject_factor,
+            tol_m: tol,
+        };
+        let run = fit(&surface, src, init, &target.centroid(), &settings);
+        let report = HeightFitReport {
+            cell_m: surface.cell_m(),
+            rms_m: run.rms_m,
+            inliers: run.inliers,
+            iterations: run.iterations,
+            converged: run.converged,
+        };
+        (run.sim, Some(report))
     }
 
     /// ICP settings of a coarse candidate's short run or of the final run.
@@ -578,7 +650,7 @@ impl AlignSfm {
 
 impl Stage for AlignSfm {
     const NAME: &'static str = "sfm.align";
-    const VERSION: u32 = 2;
+    const VERSION: u32 = 3;
     const DESCRIPTION: &'static str =
         "Align an SfM mesh (arbitrary similarity frame) to the laser cloud or control points: coarse search + scaled ICP; height-difference report";
     type Input = AlignInput;

@@ -34,7 +34,9 @@
 //!   Umeyama on foot points converged too slowly along the surface (2° off after 100
 //!   iterations). With `with_scale = false` the scale stays at the start value (the coarse search
 //!   needs that, see `sfm_align`). Correspondences are an indexed parallel map and the normal
-//!   equations are summed per fixed chunk in order, so runs are thread-count independent.
+//!   equations are summed per fixed chunk in order, so runs are thread-count independent. The
+//!   Gauss–Newton step ([`solve_step`]) is shared with `sfm_height_fit`, which finishes a
+//!   laser-only alignment on a smooth laser height surface.
 //! - **Height grid.** The aligned mesh goes through `dem.raster`'s rasteriser (one shared
 //!   implementation of the grid convention, linear inside triangles, long-edge holes), while the
 //!   laser points are binned to per-cell means in one sequential pass: rasterising a 14 M point
@@ -217,7 +219,7 @@ fn voxel_centroids(points: &[[f64; 3]], origin: &Vector3<f64>, voxel: f64) -> Ve
 }
 
 /// The `q` quantile (0..=1, nearest rank) of `values` (reorders them); `None` when empty.
-pub fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
+pub(super) fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
     let last = values.len().checked_sub(1)?;
     let k = ((values.len() as f64 * q).ceil() as usize)
         .saturating_sub(1)
@@ -245,16 +247,79 @@ pub struct Target {
 /// A laser sample's local plane: unit normal and neighbourhood centroid.
 type LocalPlane = (Vector3<f64>, Vector3<f64>);
 
-/// One correspondence: SfM sample index, foot point on the laser plane, distances.
+/// One correspondence: SfM sample index, its linearised residual, the nearest distance.
 struct Pair {
     src: usize,
-    /// The SfM sample mapped by the current similarity.
-    x: Vector3<f64>,
-    /// The laser normal at the nearest sample.
-    n: Vector3<f64>,
+    row: Row,
     nearest: f64,
-    /// Signed point-to-plane distance `n·(x − q)`.
-    plane: f64,
+}
+
+/// One linearised residual of a similarity fit: `r = n·(x − q)` for an SfM sample `x` mapped by the
+/// current similarity and a surface point `q`, with `foot` the point the Jacobian is evaluated at.
+///
+/// The foot is on the target surface (the perpendicular's foot for point-to-plane pairs, the point
+/// straight below or above `x` for height residuals), not the noisy `x`: the SfM noise lies mostly
+/// along `n`, and in the scale column `n·(x − c)` it would correlate with the residual, so the
+/// least-squares scale would shrink the mesh to shrink its noise (measured: −3 % on the mini
+/// corpus, whose SfM noise σ is 1.2–2.6 cm on a relief of a few cm). At the foot the column is
+/// noise-free (an instrumental variable); the fixed point is the same for noise-free data.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Row {
+    /// Where the Jacobian is evaluated.
+    pub foot: Vector3<f64>,
+    /// Residual direction (a unit normal, or `(−∂h/∂x, −∂h/∂y, 1)` for height residuals).
+    pub n: Vector3<f64>,
+    /// The residual.
+    pub r: f64,
+}
+
+/// One Gauss–Newton step of a similarity fit to `rows`, as a similarity applied after the current
+/// one: `x ↦ c + e^σ·R(ω)·(x − c) + v` about the pivot `c` (near the data centroid, which keeps
+/// the scale and rotation columns well conditioned). Jacobian row `[(f − c) × n, n, n·(f − c)]`
+/// at the foot `f` (see [`Row`]). Normal equations are summed per fixed chunk, then in chunk
+/// order (thread-count independent). `None` when they are singular.
+pub(super) fn solve_step(rows: &[Row], c: &Vector3<f64>, with_scale: bool) -> Option<Similarity> {
+    let keep_scale = if with_scale { 1.0 } else { 0.0 };
+    let parts: Vec<(SMatrix<f64, 7, 7>, SVector<f64, 7>)> = rows
+        .par_chunks(4096)
+        .map(|chunk| {
+            chunk
+                .iter()
+                .fold((SMatrix::zeros(), SVector::zeros()), |(h, g), row| {
+                    let fc = row.foot - c;
+                    let a = fc.cross(&row.n);
+                    let j = SVector::<f64, 7>::from([
+                        a.x,
+                        a.y,
+                        a.z,
+                        row.n.x,
+                        row.n.y,
+                        row.n.z,
+                        keep_scale * row.n.dot(&fc),
+                    ]);
+                    (h + j * j.transpose(), g + j * row.r)
+                })
+        })
+        .collect();
+    let (mut h, g) = parts
+        .iter()
+        .fold((SMatrix::zeros(), SVector::zeros()), |(h, g), (ph, pg)| {
+            (h + ph, g + pg)
+        });
+    if !with_scale {
+        h += SMatrix::from_diagonal(&SVector::<f64, 7>::from([
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+        ]));
+    }
+    let d: [f64; 7] = h.cholesky()?.solve(&(-g)).into();
+    let [wx, wy, wz, vx, vy, vz, sigma] = d;
+    if !d.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let r = Rotation3::new(Vector3::new(wx, wy, wz)).into_inner();
+    let s = sigma.exp();
+    let t = c - r * c * s + Vector3::new(vx, vy, vz);
+    Some(Similarity::from_parts(s, &r, &t))
 }
 
 /// One ICP run.
@@ -341,6 +406,11 @@ impl Target {
         })
     }
 
+    /// Centroid of the samples.
+    pub fn centroid(&self) -> Vector3<f64> {
+        self.centroid
+    }
+
     /// Correspondences of `src` mapped by `sim` with the nearest laser samples, dropping those that
     /// end on a boundary sample, on a sample without a normal, or farther than `reject_factor` ×
     /// the median nearest distance. Also returns every sample's nearest distance (for the score).
@@ -373,12 +443,17 @@ impl Target {
                     .copied()
                     .flatten()
                     .filter(|_| interior)
-                    .map(|(n, q)| Pair {
-                        src: i,
-                        x,
-                        n,
-                        nearest,
-                        plane: n.dot(&(x - q)),
+                    .map(|(n, q)| {
+                        let r = n.dot(&(x - q));
+                        Pair {
+                            src: i,
+                            row: Row {
+                                foot: x - n * r,
+                                n,
+                                r,
+                            },
+                            nearest,
+                        }
                     });
                 Some((nearest, pair))
             })
@@ -394,69 +469,14 @@ impl Target {
         (pairs, nearest)
     }
 
-    /// One Gauss–Newton step of point-to-plane ICP with scale, as a similarity applied after the
-    /// current one: `x ↦ c + e^σ·R(ω)·(x − c) + v` about the laser centroid `c` (which keeps the
-    /// scale and rotation columns well conditioned). Residual `n·(x − q)`, Jacobian row
-    /// `[(f − c) × n, n, n·(f − c)]` evaluated at the foot `f = x − n·r` of the perpendicular
-    /// on the laser plane rather than at `x`: the SfM noise lies mostly along `n`, and in the
-    /// scale column `n·(x − c)` it would correlate with the residual, so the least-squares scale
-    /// would shrink the mesh to shrink its noise (measured: −3 % on the mini corpus, whose SfM
-    /// noise σ is 1.2–2.6 cm on a relief of a few cm). At the foot the column is noise-free (an
-    /// instrumental variable); the fixed point is the same for noise-free data. Normal equations
-    /// are summed per fixed chunk, then in chunk order. `None` when they are singular.
-    fn gauss_newton(&self, pairs: &[Pair], with_scale: bool) -> Option<Similarity> {
-        let c = self.centroid;
-        let keep_scale = if with_scale { 1.0 } else { 0.0 };
-        let parts: Vec<(SMatrix<f64, 7, 7>, SVector<f64, 7>)> = pairs
-            .par_chunks(4096)
-            .map(|chunk| {
-                chunk
-                    .iter()
-                    .fold((SMatrix::zeros(), SVector::zeros()), |(h, g), p| {
-                        // The foot of the perpendicular, not the noisy SfM point (see above).
-                        let xc = p.x - p.n * p.plane - c;
-                        let a = xc.cross(&p.n);
-                        let j = SVector::<f64, 7>::from([
-                            a.x,
-                            a.y,
-                            a.z,
-                            p.n.x,
-                            p.n.y,
-                            p.n.z,
-                            keep_scale * p.n.dot(&xc),
-                        ]);
-                        (h + j * j.transpose(), g + j * p.plane)
-                    })
-            })
-            .collect();
-        let (mut h, g) = parts
-            .iter()
-            .fold((SMatrix::zeros(), SVector::zeros()), |(h, g), (ph, pg)| {
-                (h + ph, g + pg)
-            });
-        if !with_scale {
-            h += SMatrix::from_diagonal(&SVector::<f64, 7>::from([
-                0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
-            ]));
-        }
-        let d: [f64; 7] = h.cholesky()?.solve(&(-g)).into();
-        let [wx, wy, wz, vx, vy, vz, sigma] = d;
-        if !d.iter().all(|v| v.is_finite()) {
-            return None;
-        }
-        let r = Rotation3::new(Vector3::new(wx, wy, wz)).into_inner();
-        let s = sigma.exp();
-        let t = c - r * c * s + Vector3::new(vx, vy, vz);
-        Some(Similarity::from_parts(s, &r, &t))
-    }
-
     /// Iterates from `init` until the samples move less than `s.tol_m` (RMS) in one step.
     pub fn icp(&self, src: &[[f64; 3]], init: Similarity, s: &IcpSettings) -> IcpRun {
         let mut sim = init;
         let (mut done, mut converged) = (0, false);
         while done < s.iterations {
             let (pairs, _) = self.pairs(src, &sim, s.reject_factor, s.horizontal);
-            let Some(step) = self.gauss_newton(&pairs, s.with_scale) else {
+            let rows: Vec<Row> = pairs.iter().map(|p| p.row).collect();
+            let Some(step) = solve_step(&rows, &self.centroid, s.with_scale) else {
                 break;
             };
             let next = step.compose(&sim);
@@ -473,7 +493,7 @@ impl Target {
             }
         }
         let (pairs, mut nearest) = self.pairs(src, &sim, s.reject_factor, s.horizontal);
-        let plane: Vec<f64> = pairs.iter().map(|p| p.plane).collect();
+        let plane: Vec<f64> = pairs.iter().map(|p| p.row.r).collect();
         let near: Vec<f64> = pairs.iter().map(|p| p.nearest).collect();
         IcpRun {
             sim,
