@@ -37,7 +37,7 @@ use crate::stages::dem_tin::Tin;
 use crate::stages::merge_clean::{MergeClean, MergeScan};
 use crate::stages::register_icp::{IcpInput, IcpScan, RegisterIcp};
 use crate::stages::register_tiepoints::{RegisterTiepoints, ScanTiepoints, TiepointInput};
-use crate::stages::sfm_align::{AlignInput, AlignSfm, ControlPoint};
+use crate::stages::sfm_align::{AlignSfm, ControlPoint};
 
 /// Anything that stops a compile. The database is left as it was.
 #[derive(Debug, thiserror::Error)]
@@ -226,7 +226,7 @@ struct LaserTerrain {
 }
 
 /// The laser data a reconstruction terrain uses: the merged points it is aligned to, and the
-/// rasters of the laser terrains some reconstruction drapes its colours on, by terrain name.
+/// laser terrains' rasters (which it may drape its colours on), by terrain name.
 struct LaserData<'a> {
     points: &'a [[f64; 3]],
     rasters: &'a BTreeMap<String, Vec<Raster>>,
@@ -317,15 +317,11 @@ fn laser_terrain(
     let rasters = raster.run(&ctx.cx, &tin)?;
     ctx.record(&raster);
     ctx.lap(DemRaster::NAME);
-    encode_rasters(
-        ctx,
-        &t.name,
-        &rasters,
-        (t.texture == Texture::Reflectance).then_some("reflectance"),
-        opts.lods,
-        Some(dem_out),
-    )?;
-    ctx.lap("encode.terrain");
+    dem_out.extend(
+        rasters
+            .iter()
+            .map(|r| dem_row(&raster_entry(&t.name, r), r)),
+    );
     let report = json!({
         "terrain": t.name,
         "scans": regs.iter().zip(&icp_out.scans).map(|(r, i)| json!({
@@ -429,15 +425,9 @@ fn sfm_terrain(
                 ground: g.ground,
             })
             .collect();
+        // The borrowed form of `Stage::run` (no copy of the merged cloud).
         let out = align
-            .run(
-                &ctx.cx,
-                &AlignInput {
-                    mesh: mesh.clone(),
-                    laser: laser.points.to_vec(),
-                    control,
-                },
-            )
+            .align(&ctx.cx, &mesh, laser.points, &control)
             .map_err(|e| match &gcps {
                 Some((p, _)) => StageError::new(
                     e.stage,
@@ -578,18 +568,28 @@ fn drape(
     )
 }
 
-/// Encodes a terrain's rasters (entries `<terrain>/<cell>`) in parallel — encoding is pure and
-/// most of `encode.terrain`'s cost — and stores them in raster order, so entries and bytes do
-/// not depend on the thread count. `texture`: the content of the texture made from each
-/// raster's albedo (none: no texture). Appends each raster's statistics row to `dem_out`.
+/// Encodes a terrain's rasters (entries `<terrain>/<cell>`) and stores them: see
+/// [`encode_all`] and [`store_rasters`].
 fn encode_rasters(
     ctx: &mut Ctx<'_>,
     terrain: &str,
     rasters: &[Raster],
     texture: Option<&str>,
     lods: u32,
-    mut dem_out: Option<&mut Vec<Value>>,
+    dem_out: Option<&mut Vec<Value>>,
 ) -> Result<(), CompileError> {
+    let encoded = encode_all(terrain, rasters, texture, lods)?;
+    store_rasters(ctx, terrain, rasters, encoded, texture, dem_out)
+}
+
+/// Encodes a terrain's rasters in parallel (pure: no store access), returned in raster order.
+/// `texture`: the content of the texture made from each raster's albedo (none: no texture).
+fn encode_all(
+    terrain: &str,
+    rasters: &[Raster],
+    texture: Option<&str>,
+    lods: u32,
+) -> Result<Vec<terrain::EncodedTerrain>, CompileError> {
     // Largest raster first, one task each: the finest grid's LOD chain is the longest single
     // piece of work, so it starts at once while the other rasters share the other threads.
     let mut order: Vec<usize> = (0..rasters.len()).collect();
@@ -621,8 +621,26 @@ fn encode_rasters(
             *slot = Some(e);
         }
     }
-    for (r, enc) in rasters.iter().zip(encoded.into_iter().flatten()) {
-        let name = format!("{terrain}/{}", cell_label(r.cell_m));
+    Ok(encoded.into_iter().flatten().collect())
+}
+
+/// Entry name of a terrain's raster: `<terrain>/<cell>`.
+fn raster_entry(terrain: &str, r: &Raster) -> String {
+    format!("{terrain}/{}", cell_label(r.cell_m))
+}
+
+/// Stores encoded rasters in raster order, so entries and bytes do not depend on the thread
+/// count, and appends each raster's statistics row to `dem_out`.
+fn store_rasters(
+    ctx: &mut Ctx<'_>,
+    terrain: &str,
+    rasters: &[Raster],
+    encoded: Vec<terrain::EncodedTerrain>,
+    texture: Option<&str>,
+    mut dem_out: Option<&mut Vec<Value>>,
+) -> Result<(), CompileError> {
+    for (r, enc) in rasters.iter().zip(encoded) {
+        let name = raster_entry(terrain, r);
         store_raster(ctx, &name, enc, texture.unwrap_or_default())?;
         if let Some(rows) = dem_out.as_deref_mut() {
             rows.push(dem_row(&name, r));
@@ -768,50 +786,89 @@ pub fn compile(
     let mut dem = Vec::new();
     let n_terrains = c.terrains.len().max(1) as f64;
     let mut laser_points: Vec<[f64; 3]> = Vec::new();
-    // Laser rasters some reconstruction terrain drapes its colours on (`drape_on`).
+    // Every laser terrain's rasters, by name (encoded below; reconstructions drape on them).
     let mut laser_rasters: BTreeMap<String, Vec<Raster>> = BTreeMap::new();
-    let mut alignment = serde_json::Map::new();
-    let mut order: Vec<&Terrain> = c.terrains.iter().collect();
-    order.sort_by_key(|t| matches!(t.from, TerrainSource::Reconstructions(_)));
-    for (k, t) in order.into_iter().enumerate() {
+    let (lasers, recons): (Vec<&Terrain>, Vec<&Terrain>) = c
+        .terrains
+        .iter()
+        .partition(|t| matches!(t.from, TerrainSource::Scans(_)));
+    for (k, t) in lasers.iter().enumerate() {
         progress(
             &format!("terrain {}", t.name),
             0.1 + 0.7 * k as f64 / n_terrains,
         );
-        match &t.from {
-            TerrainSource::Scans(idx) => {
-                let out = laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?;
-                registration.push(out.report);
-                if c.terrains
-                    .iter()
-                    .any(|o| o.drape_on.as_deref() == Some(t.name.as_str()))
-                {
-                    laser_rasters.insert(t.name.clone(), out.rasters);
-                }
-                if laser_points.is_empty() {
-                    laser_points = out.points;
-                }
-            }
-            TerrainSource::Reconstructions(idx) => {
-                if let Value::Object(m) = sfm_terrain(
-                    &mut ctx,
-                    c,
-                    t,
-                    idx,
-                    &LaserData {
-                        points: &laser_points,
-                        rasters: &laser_rasters,
-                    },
-                    &control,
-                    opts,
-                    &mut dem,
-                )? {
-                    alignment.extend(m);
-                }
-            }
+        let TerrainSource::Scans(idx) = &t.from else {
+            continue;
+        };
+        let out = laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?;
+        registration.push(out.report);
+        laser_rasters.insert(t.name.clone(), out.rasters);
+        if laser_points.is_empty() {
+            laser_points = out.points;
         }
     }
+    // The laser rasters are encoded (pure work; the finest grid's LOD chain holds one thread
+    // for seconds) while this thread aligns the reconstructions and builds the captures; the
+    // laser entries are then stored and put where a sequential compile puts them, before the
+    // reconstructions', so the release does not depend on the overlap.
+    let laser_texture = |t: &Terrain| (t.texture == Texture::Reflectance).then_some("reflectance");
+    let mut encoded = None;
+    let mark = ctx.entries.len();
+    let rest = rayon::in_place_scope(|scope| {
+        let (encoded, lasers, rasters) = (&mut encoded, &lasers, &laser_rasters);
+        scope.spawn(move |_| {
+            let all = lasers
+                .iter()
+                .map(|t| {
+                    let r = rasters.get(&t.name).map_or(&[][..], Vec::as_slice);
+                    encode_all(&t.name, r, laser_texture(t), opts.lods)
+                })
+                .collect::<Result<Vec<_>, CompileError>>();
+            *encoded = Some(all);
+        });
+        let mut alignment = serde_json::Map::new();
+        for (k, t) in recons.iter().enumerate() {
+            progress(
+                &format!("terrain {}", t.name),
+                0.1 + 0.7 * (lasers.len() + k) as f64 / n_terrains,
+            );
+            let TerrainSource::Reconstructions(idx) = &t.from else {
+                continue;
+            };
+            let laser = LaserData {
+                points: &laser_points,
+                rasters: &laser_rasters,
+            };
+            if let Value::Object(m) =
+                sfm_terrain(&mut ctx, c, t, idx, &laser, &control, opts, &mut dem)?
+            {
+                alignment.extend(m);
+            }
+        }
+        progress("captures", 0.85);
+        let caps = BuildCaptures {
+            limits: opts.limits,
+        };
+        let out = caps.run(&ctx.cx, c)?;
+        ctx.record(&caps);
+        ctx.lap(BuildCaptures::NAME);
+        Ok::<_, CompileError>((alignment, out))
+    });
+    let (alignment, out) = rest?;
+    let encoded =
+        encoded.ok_or_else(|| StageError::new("encode.terrain", "encoding did not run"))??;
+    let before = ctx.entries.len();
+    for (t, enc) in lasers.iter().zip(encoded) {
+        let rasters = laser_rasters.get(&t.name).map_or(&[][..], Vec::as_slice);
+        store_rasters(&mut ctx, &t.name, rasters, enc, laser_texture(t), None)?;
+    }
+    let added = ctx.entries.len() - before;
+    if let Some(tail) = ctx.entries.get_mut(mark..) {
+        tail.rotate_right(added);
+    }
+    ctx.lap("encode.terrain");
     drop(laser_points);
+    drop(laser_rasters);
     let alignment_full = Value::Object(alignment);
     let alignment: Value = alignment_full
         .as_object()
@@ -830,13 +887,6 @@ pub fn compile(
         })
         .map(Value::Object)
         .unwrap_or_default();
-    progress("captures", 0.85);
-    let caps = BuildCaptures {
-        limits: opts.limits,
-    };
-    let out = caps.run(&ctx.cx, c)?;
-    ctx.record(&caps);
-    ctx.lap(BuildCaptures::NAME);
     for cam in &out.cameras {
         let f = writer.put_json(&cam.model)?;
         ctx.entries.push(Entry {
