@@ -273,6 +273,40 @@ pub(super) struct Row {
     pub r: f64,
 }
 
+/// Gauss–Newton iterations of [`solve_step`] from `init`: `rows_at(sim)` linearises at `sim` and
+/// names the samples of `src` whose motion decides convergence (RMS below `tol_m`). Returns the
+/// similarity, the iterations run and whether it converged.
+pub(super) fn iterate(
+    init: Similarity,
+    iterations: usize,
+    tol_m: f64,
+    pivot: &Vector3<f64>,
+    with_scale: bool,
+    mut rows_at: impl FnMut(&Similarity) -> (Vec<Row>, Vec<usize>),
+    src: &[[f64; 3]],
+) -> (Similarity, usize, bool) {
+    let mut sim = init;
+    let mut done = 0;
+    while done < iterations {
+        let (rows, moved) = rows_at(&sim);
+        let Some(step) = solve_step(&rows, pivot, with_scale) else {
+            break;
+        };
+        let next = step.compose(&sim);
+        let motion: Vec<f64> = moved
+            .iter()
+            .filter_map(|&i| src.get(i))
+            .map(|p| (Vector3::from(next.apply(*p)) - Vector3::from(sim.apply(*p))).norm())
+            .collect();
+        sim = next;
+        done += 1;
+        if rms(&motion) < tol_m {
+            return (sim, done, true);
+        }
+    }
+    (sim, done, false)
+}
+
 /// One Gauss–Newton step of a similarity fit to `rows`, as a similarity applied after the current
 /// one: `x ↦ c + e^σ·R(ω)·(x − c) + v` about the pivot `c` (near the data centroid, which keeps
 /// the scale and rotation columns well conditioned). Jacobian row `[(f − c) × n, n, n·(f − c)]`
@@ -471,27 +505,19 @@ impl Target {
 
     /// Iterates from `init` until the samples move less than `s.tol_m` (RMS) in one step.
     pub fn icp(&self, src: &[[f64; 3]], init: Similarity, s: &IcpSettings) -> IcpRun {
-        let mut sim = init;
-        let (mut done, mut converged) = (0, false);
-        while done < s.iterations {
-            let (pairs, _) = self.pairs(src, &sim, s.reject_factor, s.horizontal);
-            let rows: Vec<Row> = pairs.iter().map(|p| p.row).collect();
-            let Some(step) = solve_step(&rows, &self.centroid, s.with_scale) else {
-                break;
-            };
-            let next = step.compose(&sim);
-            let motion: Vec<f64> = pairs
-                .iter()
-                .filter_map(|p| src.get(p.src))
-                .map(|p| (Vector3::from(next.apply(*p)) - Vector3::from(sim.apply(*p))).norm())
-                .collect();
-            sim = next;
-            done += 1;
-            if rms(&motion) < s.tol_m {
-                converged = true;
-                break;
-            }
-        }
+        let (sim, done, converged) = iterate(
+            init,
+            s.iterations,
+            s.tol_m,
+            &self.centroid,
+            s.with_scale,
+            |sim| {
+                let (pairs, _) = self.pairs(src, sim, s.reject_factor, s.horizontal);
+                let moved = pairs.iter().map(|p| p.src).collect();
+                (pairs.into_iter().map(|p| p.row).collect(), moved)
+            },
+            src,
+        );
         let (pairs, mut nearest) = self.pairs(src, &sim, s.reject_factor, s.horizontal);
         let plane: Vec<f64> = pairs.iter().map(|p| p.row.r).collect();
         let near: Vec<f64> = pairs.iter().map(|p| p.nearest).collect();

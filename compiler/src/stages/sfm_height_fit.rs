@@ -29,7 +29,7 @@ use rayon::prelude::*;
 
 use super::geometry::rms;
 use super::sfm_align::Similarity;
-use super::sfm_features::{quantile, solve_step, Row};
+use super::sfm_features::{iterate, quantile, Row};
 
 /// Points per cell below which a cell gets no plane.
 const MIN_POINTS: u32 = 6;
@@ -256,25 +256,20 @@ pub fn fit(
     c: &Vector3<f64>,
     s: &HeightFitSettings,
 ) -> HeightFitRun {
-    let mut sim = init;
-    let (mut done, mut converged) = (0, false);
-    while done < s.iterations {
-        let kept = rows(surface, src, &sim, s.reject_factor);
-        let Some(step) = solve_step(&kept, c, s.with_scale) else {
-            break;
-        };
-        let next = step.compose(&sim);
-        let motion: Vec<f64> = src
-            .iter()
-            .map(|p| (Vector3::from(next.apply(*p)) - Vector3::from(sim.apply(*p))).norm())
-            .collect();
-        sim = next;
-        done += 1;
-        if rms(&motion) < s.tol_m {
-            converged = true;
-            break;
-        }
-    }
+    let (sim, done, converged) = iterate(
+        init,
+        s.iterations,
+        s.tol_m,
+        c,
+        s.with_scale,
+        |sim| {
+            (
+                rows(surface, src, sim, s.reject_factor),
+                (0..src.len()).collect(),
+            )
+        },
+        src,
+    );
     let kept = rows(surface, src, &sim, s.reject_factor);
     let r: Vec<f64> = kept.iter().map(|row| row.r).collect();
     HeightFitRun {
