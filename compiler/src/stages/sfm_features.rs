@@ -35,7 +35,7 @@
 //!   iterations). With `with_scale = false` the scale stays at the start value (the coarse search
 //!   needs that, see `sfm_align`). Correspondences are an indexed parallel map and the normal
 //!   equations are summed per fixed chunk in order, so runs are thread-count independent. The
-//!   Gauss–Newton step ([`solve_step`]) is shared with `sfm_height_fit`, which finishes a
+//!   Gauss–Newton step (`solve_step`, `iterate`) is shared with `sfm_height_fit`, which finishes a
 //!   laser-only alignment on a smooth laser height surface.
 //! - **Height grid.** The aligned mesh goes through `dem.raster`'s rasteriser (one shared
 //!   implementation of the grid convention, linear inside triangles, long-edge holes), while the
