@@ -297,3 +297,26 @@ fn publishing_requires_passing_certificates() {
     );
     assert_eq!(regolith(&["verify", &db]).status.code(), Some(0));
 }
+
+/// `regolith … | head`: output into a pipe nobody reads any more ends the command quietly with
+/// status 0 (it used to panic on the broken pipe and report an internal error, status 3).
+#[test]
+fn a_closed_stdout_pipe_ends_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = sample_db(dir.path());
+    for args in [
+        vec!["inspect", db.as_str(), "latest", "--json"],
+        vec!["inspect", db.as_str(), "latest"],
+    ] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_regolith"))
+            .args(&args)
+            .stdout(writer)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {stderr}");
+        assert!(!stderr.contains("internal error"), "{args:?}: {stderr}");
+    }
+}

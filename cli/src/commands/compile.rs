@@ -29,9 +29,9 @@ pub fn run(
             print_json(&inv)?;
             return Ok(Outcome::Ok);
         }
-        println!("campaign {} — {}", inv.campaign, inv.counts);
+        say!("campaign {} — {}", inv.campaign, inv.counts);
         for f in &inv.files {
-            println!(
+            say!(
                 "  {:<44} {:<15} {:<16} {:>10}  {}",
                 f.path,
                 f.role,
@@ -40,7 +40,7 @@ pub fn run(
                 f.summary
             );
         }
-        println!("all {} files parsed; nothing written", inv.files.len());
+        say!("all {} files parsed; nothing written", inv.files.len());
         return Ok(Outcome::Ok);
     }
     let Some(db) = db else {
@@ -72,7 +72,7 @@ pub fn run(
         print_json(&summary)?;
         return Ok(Outcome::Ok);
     }
-    println!(
+    say!(
         "release {} id {}{}",
         summary.release,
         summary.id,
@@ -83,10 +83,10 @@ pub fn run(
         }
     );
     for (stage, s) in &summary.stage_seconds {
-        println!("  {stage:<20} {s:>7.2} s");
+        say!("  {stage:<20} {s:>7.2} s");
     }
     for d in &summary.dem {
-        println!(
+        say!(
             "  {:<24} area {:.3} m², volume {:.4} m³, {} points, {} triangles",
             d["entry"].as_str().unwrap_or(""),
             d["area_m2"].as_f64().unwrap_or(0.0),
@@ -113,7 +113,7 @@ pub fn run(
             } else {
                 "range slope not determined by the overlaps".to_string()
             };
-            println!(
+            say!(
                 "  {:<24} reflectance cross-calibration: {slope}, scan offsets ≤ {offset:.2} dB, scans agree {before:.2} → {after:.2} dB RMS{}",
                 t["terrain"].as_str().unwrap_or(""),
                 if r["applied"] == true { "" } else { " (implausible: not applied)" }
@@ -144,12 +144,12 @@ pub fn run(
                 line.push_str(&format!(" (largest {:.2} mm at {k})", v * 1e3));
             }
         }
-        println!("{line}");
+        say!("{line}");
     }
     for w in &summary.warnings {
-        println!("  warning: {}", w["message"].as_str().unwrap_or(""));
+        say!("  warning: {}", w["message"].as_str().unwrap_or(""));
     }
-    println!(
+    say!(
         "{} entries; `regolith inspect {} {}` for details",
         summary.entries.len(),
         db.display(),

@@ -30,7 +30,7 @@ pub fn run(
             "texture_blur_px": c.sigma_px,
         }))?;
     } else {
-        println!(
+        say!(
             "{}: {} = {entry} with its texture blurred by σ {sigma_m} m ({:.2} texture pixels); \
              validate it with: regolith validate {} --release {} --entry {}",
             c.release,

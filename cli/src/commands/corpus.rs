@@ -64,7 +64,7 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         }))?;
     } else {
         let points: usize = summary.scan_points.iter().map(|s| s.1).sum();
-        println!(
+        say!(
             "wrote {} files to {} ({} scans, {points} points, {} captures); truth in {}",
             summary.files.len(),
             out.display(),
@@ -73,7 +73,7 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
             Path::new(out).join("truth").display()
         );
         if let (Some(dir), Some(b)) = (bad_inputs, bad) {
-            println!(
+            say!(
                 "wrote {} malformed inputs to {} (see its README.md)",
                 b.len(),
                 dir.display()

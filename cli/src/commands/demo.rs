@@ -19,7 +19,7 @@ use crate::Outcome;
 /// One line per certificate: verdict, mean repeatability ratio to the real-vs-real ceiling, and
 /// the first failed criterion.
 fn print_certificate(c: &Certificate, prefix: &str) {
-    println!(
+    say!(
         "  {prefix}certificate {:<14} {} (mean repeatability ratio to the real-vs-real ceiling {}){}",
         c.entry,
         if c.passed { "PASS" } else { "FAIL" },
@@ -123,14 +123,14 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
             }))}),
         )?;
     } else {
-        println!(
+        say!(
             "compiled {} ({} entries) into {}",
             summary.release,
             summary.entries.len(),
             db_path.display()
         );
         for d in &summary.dem {
-            println!(
+            say!(
                 "  DEM {:<14} {} triangles",
                 d["entry"].as_str().unwrap_or(""),
                 d["triangles"]
@@ -140,9 +140,9 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
             print_certificate(c, "");
         }
         if let Some((r, applied, revalidated)) = &gap_round {
-            println!("  gap {}:", r.entry);
+            say!("  gap {}:", r.entry);
             if r.named.is_empty() {
-                println!("    no effect explains a significant share of the gap");
+                say!("    no effect explains a significant share of the gap");
             }
             for n in &r.named {
                 let params: Vec<String> = n
@@ -150,7 +150,7 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
                     .iter()
                     .map(|(k, v)| format!("{k} {v:.3}"))
                     .collect();
-                println!(
+                say!(
                     "    named {} ({}), explains {:.0} %",
                     n.effect,
                     params.join(", "),
@@ -158,25 +158,27 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
                 );
             }
             if let Some(truth) = hidden["effects"].as_array() {
-                println!(
+                say!(
                     "    hidden in the demo campaign (truth/hidden.json): {}",
                     serde_json::Value::Array(truth.clone())
                 );
             }
-            println!(
+            say!(
                 "    {} {:.2} -> {:.2} DN",
-                r.gap_metric, r.gap_before, r.gap_after
+                r.gap_metric,
+                r.gap_before,
+                r.gap_after
             );
             if let Some((label, _)) = applied {
-                println!("    model written to release {label}");
+                say!("    model written to release {label}");
             }
             if let Some(c) = revalidated {
                 print_certificate(c, "  (with the fitted model) ");
             }
         }
-        println!("verify: {}", if report.ok() { "intact" } else { "CORRUPT" });
-        println!("next: regolith inspect {} latest", db_path.display());
-        println!(
+        say!("verify: {}", if report.ok() { "intact" } else { "CORRUPT" });
+        say!("next: regolith inspect {} latest", db_path.display());
+        say!(
             "      regolith export {} latest laser/0.01 --to {}/laser-0.01 --profile gazebo",
             db_path.display(),
             out.display()

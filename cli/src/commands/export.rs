@@ -79,7 +79,7 @@ pub fn run(
     if json_out {
         print_json(&json!({"release": view.label(), "entry": entry, "to": to, "files": written}))?;
     } else {
-        println!(
+        say!(
             "exported {entry} of {} to {}: {}",
             view.label(),
             to.display(),

@@ -59,7 +59,7 @@ pub fn run(action: &FeaturesAction, json: bool) -> anyhow::Result<Outcome> {
             if json {
                 print_json(&serde_json::json!({"image": image, "detector": d, "keypoints": kps}))?;
             } else {
-                println!(
+                say!(
                     "{}: {} {} keypoints ({}x{})",
                     image.display(),
                     kps.len(),
@@ -68,9 +68,12 @@ pub fn run(action: &FeaturesAction, json: bool) -> anyhow::Result<Outcome> {
                     img.height
                 );
                 for k in kps.iter().take(10) {
-                    println!(
+                    say!(
                         "  x {:8.2}  y {:8.2}  size {:6.2}  response {:.4}",
-                        k.x, k.y, k.size, k.response
+                        k.x,
+                        k.y,
+                        k.size,
+                        k.response
                     );
                 }
             }
@@ -114,14 +117,14 @@ pub fn run(action: &FeaturesAction, json: bool) -> anyhow::Result<Outcome> {
                     &serde_json::json!({"detector": d, "keypoints": [pa.len(), pb.len()], "repeatability": curve}),
                 )?;
             } else {
-                println!(
+                say!(
                     "{} keypoints: {} in A, {} in B",
                     d.name(),
                     pa.len(),
                     pb.len()
                 );
                 for r in &curve {
-                    println!(
+                    say!(
                         "  ε {:>3.1} px: repeatability {:.3} ({} repeated of min({}, {})), one-directional {:.3}, over chance {:.3} (chance {:.3})",
                         r.epsilon_px, r.score, r.repeated, r.n_a, r.n_b, r.one_directional, r.excess, r.chance
                     );

@@ -68,9 +68,9 @@ pub fn run(
         };
         print_json(&v)?;
     } else {
-        println!("{} {entry}", view.label());
+        say!("{} {entry}", view.label());
         if result.named.is_empty() {
-            println!("  no effect explains a significant share of the gap");
+            say!("  no effect explains a significant share of the gap");
         }
         for n in &result.named {
             let params: Vec<String> = n
@@ -81,16 +81,16 @@ pub fn run(
                     _ => format!("{k}={v:.4}"),
                 })
                 .collect();
-            println!(
+            say!(
                 "  {:<12} explains {:>5.1}%  {}",
                 n.effect,
                 100.0 * n.explained_fraction,
                 params.join(" ")
             );
-            println!("  {:<12} evidence: {}", "", n.evidence);
+            say!("  {:<12} evidence: {}", "", n.evidence);
         }
         let (b, a) = (&result.metrics_before, &result.metrics_after);
-        println!(
+        say!(
             "  gap ({}): {:.2} -> {:.2} DN; geometric alignment residual {:.3} -> {:.3}",
             result.gap_metric,
             result.gap_before,
@@ -99,11 +99,11 @@ pub fn run(
             a.alignment_residual
         );
         if let Some(i) = &index {
-            println!("  report: {}", i.display());
+            say!("  report: {}", i.display());
         }
         match &applied {
-            Some((label, id)) => println!("  applied: release {label} ({})", id.short()),
-            None if apply_model => println!("  nothing to apply"),
+            Some((label, id)) => say!("  applied: release {label} ({})", id.short()),
+            None if apply_model => say!("  nothing to apply"),
             None => {}
         }
     }

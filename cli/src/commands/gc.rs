@@ -14,7 +14,7 @@ pub fn run(db: &Path, json: bool) -> anyhow::Result<Outcome> {
     if json {
         print_json(&report)?;
     } else {
-        println!(
+        say!(
             "kept {} object(s), removed {} ({} freed)",
             report.kept,
             report.removed,

@@ -46,9 +46,9 @@ fn database_summary(db: &Database, json_out: bool) -> anyhow::Result<()> {
             .collect();
         return print_json(&json!({"releases": releases, "refs": refs}));
     }
-    println!("{} release(s) in {}", releases.len(), db.root().display());
+    say!("{} release(s) in {}", releases.len(), db.root().display());
     for r in &releases {
-        println!(
+        say!(
             "  {:<32} {}  {:>3} entries  {}",
             r["release"].as_str().unwrap_or_default(),
             &r["id"]
@@ -61,7 +61,7 @@ fn database_summary(db: &Database, json_out: bool) -> anyhow::Result<()> {
         );
     }
     for (name, id) in refs.iter().filter(|(k, _)| !k.starts_with("releases/")) {
-        println!("  ref {name} -> {}", id.short());
+        say!("  ref {name} -> {}", id.short());
     }
     Ok(())
 }
@@ -101,22 +101,22 @@ fn release_summary(view: &ReleaseView, json_out: bool) -> anyhow::Result<()> {
         return print_json(&json!({"id": view.id.to_hex(), "manifest": view.manifest}));
     }
     let m = &view.manifest;
-    println!("release {}  id {}", view.label(), view.id);
+    say!("release {}  id {}", view.label(), view.id);
     if let Some(p) = m.parent {
-        println!("parent  {p}");
+        say!("parent  {p}");
     }
-    println!("producer {} {}", m.producer.name, m.producer.version);
-    println!(
+    say!("producer {} {}", m.producer.name, m.producer.version);
+    say!(
         "campaign {} ({} input files)",
         m.campaign.name,
         m.campaign.inputs.len()
     );
     if m.allow_uncertified == Some(true) {
-        println!("published WITHOUT passing certificates (--allow-uncertified)");
+        say!("published WITHOUT passing certificates (--allow-uncertified)");
     }
-    println!("{} entries:", m.entries.len());
+    say!("{} entries:", m.entries.len());
     for e in &m.entries {
-        println!(
+        say!(
             "  {:<28} {:<12} {:>10}  {}",
             e.name,
             e.kind,
@@ -144,11 +144,11 @@ fn entry_summary(view: &ReleaseView, name: &str, json_out: bool) -> anyhow::Resu
             &json!({"release": view.label(), "entry": e, "entry_hash": e.hash()?.to_hex(), "body": body}),
         );
     }
-    println!("{} in {} ({})", e.name, view.label(), e.kind);
-    println!("entry hash {}", e.hash()?);
-    println!("{}", describe(e));
+    say!("{} in {} ({})", e.name, view.label(), e.kind);
+    say!("entry hash {}", e.hash()?);
+    say!("{}", describe(e));
     for (role, f) in &e.files {
-        println!(
+        say!(
             "  {role:<16} {}  {:>10}  {}",
             f.object.short(),
             human_bytes(f.size),
@@ -157,7 +157,7 @@ fn entry_summary(view: &ReleaseView, name: &str, json_out: bool) -> anyhow::Resu
     }
     for t in &e.tiles {
         for (role, f) in &t.files {
-            println!(
+            say!(
                 "  tile {}/{}/{} {role:<10} {}  {:>10}  {}",
                 t.level,
                 t.x,
@@ -168,9 +168,9 @@ fn entry_summary(view: &ReleaseView, name: &str, json_out: bool) -> anyhow::Resu
             );
         }
     }
-    println!("meta:\n{}", serde_json::to_string_pretty(&e.meta)?);
+    say!("meta:\n{}", serde_json::to_string_pretty(&e.meta)?);
     if let Some(b) = body {
-        println!("{}:\n{}", e.kind, serde_json::to_string_pretty(&b)?);
+        say!("{}:\n{}", e.kind, serde_json::to_string_pretty(&b)?);
     }
     Ok(())
 }

@@ -78,11 +78,11 @@ pub fn run(
                 &serde_json::json!({"release": view.label(), "published": false, "problems": problems}),
             )?;
         } else {
-            println!("refusing to publish {}:", view.label());
+            say!("refusing to publish {}:", view.label());
             for p in &problems {
-                println!("  {p}");
+                say!("  {p}");
             }
-            println!("(validate the entries, or pass --allow-uncertified to publish with the exception recorded)");
+            say!("(validate the entries, or pass --allow-uncertified to publish with the exception recorded)");
         }
         return Ok(Outcome::CheckFailed);
     };
@@ -92,7 +92,7 @@ pub fn run(
             &serde_json::json!({"release": label, "id": id.to_hex(), "published": true, "allow_uncertified": uncertified, "problems": problems}),
         )?;
     } else {
-        println!(
+        say!(
             "published {label} ({}){}",
             id.short(),
             if uncertified {

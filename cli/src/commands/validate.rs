@@ -71,7 +71,7 @@ pub fn run(
         let f = writer.put_certificate(&view.id, name, &cert)?;
         all_pass &= cert.passed;
         if !json {
-            println!(
+            say!(
                 "{name}: {} (certificate {})",
                 if cert.passed { "PASS" } else { "FAIL" },
                 f.object.short()
@@ -83,13 +83,13 @@ pub fn run(
                 let ratio = s.ratio.map_or("   -  ".to_string(), |r| {
                     format!("{:.3} [{:.3}, {:.3}]", r.mean, r.low, r.high)
                 });
-                println!(
+                say!(
                     "  {d:<7} re-detected over chance {:.3}  ceiling {ceiling}  ratio {ratio}  one-directional {:.3} (chance {:.3})  ÷min(n) {:.3}",
                     s.sim.mean, s.one_directional.mean, s.chance.mean, s.score.mean
                 );
             }
             for f in &cert.failures {
-                println!("  failed: {f}");
+                say!("  failed: {f}");
             }
         }
         out.push(serde_json::json!({"entry": name, "certificate": f.object.to_hex(), "passed": cert.passed,
@@ -106,7 +106,7 @@ pub fn run(
         }
         print_json(&v)?;
     } else if let Some(index) = &index {
-        println!("report: {}", index.display());
+        say!("report: {}", index.display());
     }
     Ok(if all_pass {
         Outcome::Ok

@@ -22,12 +22,16 @@ pub fn run(db: &Path, json: bool) -> anyhow::Result<Outcome> {
         }))?;
     } else {
         for p in &report.problems {
-            println!(
+            say!(
                 "{}  {}  entry {:?} role {:?} (release {})",
-                p.object, p.message, p.entry, p.role, p.release
+                p.object,
+                p.message,
+                p.entry,
+                p.role,
+                p.release
             );
         }
-        println!(
+        say!(
             "{}: {} release(s), {} object(s), {} checked, {} problem(s)",
             if report.ok() { "intact" } else { "CORRUPT" },
             report.releases.len(),
