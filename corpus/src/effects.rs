@@ -4,9 +4,12 @@
 //! (shared with the gap workflow, so the generator cannot hide something the fit cannot name).
 //! Each requested effect gets its parameters drawn from its range with the stage RNG
 //! `hidden.<name>`, then the user's `--effect-param E.name=value` overrides are applied.
-//! `shadows` is special: its light defaults to the campaign's `[lighting]` direction (the lab
-//! light is the one casting the shadows); if the user overrides its direction, the generator
-//! moves the lab light (and `[lighting]`) there too, so shading and shadows share one light.
+//! `shadows` is special: the lab light is the one casting the shadows, so the generator moves
+//! the lab light (and `[lighting]`) to the hidden effect's direction — drawn from the documented
+//! range (elevation 15–30°) like any effect's parameters, or given by the user — and shading and
+//! shadows share one light. (The campaign's own light is drawn at 45–70°, where a `mini`
+//! terrain casts no shadow its cameras see, so a hidden `shadows` taking that light changed
+//! nothing in the images.)
 //!
 //! Independently of the hidden list, every real image gets a mild *baseline* sensor noise
 //! (gain 0.05 DN/DN, read σ 0.8 DN) so that the two frames of a pose differ and real-vs-real
@@ -15,7 +18,6 @@
 
 use std::collections::BTreeMap;
 
-use regolith_validator::render::Light;
 use regolith_validator::sensor::{Effect, SensorModel};
 
 use crate::seeding::stage_rng;
@@ -96,7 +98,7 @@ fn check_name(
 }
 
 /// Draws the hidden model: defaults from the seed, then overrides.
-pub fn resolve(specs: &[HiddenSpec], seed: u64, light: &Light) -> Result<SensorModel, CorpusError> {
+pub fn resolve(specs: &[HiddenSpec], seed: u64) -> Result<SensorModel, CorpusError> {
     let mut effects = Vec::new();
     for spec in specs {
         check_name(&spec.name)?;
@@ -107,10 +109,6 @@ pub fn resolve(specs: &[HiddenSpec], seed: u64, light: &Light) -> Result<SensorM
             found: spec.name.clone(),
         })?;
         let mut values: BTreeMap<&str, f64> = BTreeMap::new();
-        if spec.name == "shadows" {
-            values.insert("azimuth_deg", light.azimuth_deg);
-            values.insert("elevation_deg", light.elevation_deg);
-        }
         for (k, v) in &spec.params {
             values.insert(k.as_str(), *v);
         }
@@ -139,18 +137,13 @@ pub fn real_model(hidden: &SensorModel) -> SensorModel {
 mod tests {
     use super::*;
 
-    const LIGHT: Light = Light {
-        azimuth_deg: 210.0,
-        elevation_deg: 62.0,
-        ambient: 0.35,
-    };
-
     #[test]
     fn overrides_win_and_defaults_are_in_range() {
         let mut specs = parse_list("vignetting,pose-bias,shadows").unwrap();
         apply_param(&mut specs, "vignetting.strength=0.3").unwrap();
         apply_param(&mut specs, "pose-bias.translation_m.x=0.01").unwrap();
-        let m = resolve(&specs, 5, &LIGHT).unwrap();
+        apply_param(&mut specs, "shadows.azimuth_deg=210").unwrap();
+        let m = resolve(&specs, 5).unwrap();
         assert_eq!(m.effects[0], Effect::Vignetting { strength: 0.3 });
         match m.effects[1] {
             Effect::PoseBias {
@@ -162,18 +155,18 @@ mod tests {
             }
             e => panic!("{e:?}"),
         }
-        assert_eq!(
-            m.effects[2],
+        // The shadows' light: the azimuth given, the elevation drawn in the documented range.
+        match m.effects[2] {
             Effect::Shadows {
-                azimuth_deg: 210.0,
-                elevation_deg: 62.0
+                azimuth_deg,
+                elevation_deg,
+            } => {
+                assert_eq!(azimuth_deg, 210.0);
+                assert!((15.0..=30.0).contains(&elevation_deg), "{elevation_deg}");
             }
-        );
-        assert_eq!(
-            resolve(&specs, 5, &LIGHT).unwrap(),
-            m,
-            "same seed, same draw"
-        );
+            e => panic!("{e:?}"),
+        }
+        assert_eq!(resolve(&specs, 5).unwrap(), m, "same seed, same draw");
     }
 
     #[test]

@@ -69,9 +69,9 @@ pub fn generate(
         elevation_deg: round(lrng.gen_range(45.0..70.0)),
         ambient: (lrng.gen_range(0.25..0.4f64) * 100.0).round() / 100.0,
     };
-    let hidden = effects::resolve(&opts.hidden, seed, &light)?;
-    // A hidden `shadows` is cast by the lab light itself: if its direction was overridden, the
-    // lab light (and so `[lighting]`) is that direction.
+    let hidden = effects::resolve(&opts.hidden, seed)?;
+    // A hidden `shadows` is cast by the lab light itself: the lab light (and so `[lighting]`)
+    // takes its direction (see `effects`).
     for e in &hidden.effects {
         if let regolith_validator::sensor::Effect::Shadows {
             azimuth_deg,

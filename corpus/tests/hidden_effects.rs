@@ -163,12 +163,20 @@ fn noise_variance_matches_gain_and_read_sigma() {
 
 #[test]
 fn shadows_only_darken_and_some_pixels_fall_to_ambient() {
-    let dir = mini(7, &[("shadows", &[])]);
-    let light = json(&dir, "truth/lighting.json");
+    // The plain campaign's own light, given explicitly: the frames differ only by the shadows.
+    let plain_light = json(plain(), "truth/lighting.json");
+    let (az, el) = (
+        plain_light["azimuth_deg"].as_f64().unwrap(),
+        plain_light["elevation_deg"].as_f64().unwrap(),
+    );
+    let dir = mini(
+        7,
+        &[("shadows", &[("azimuth_deg", az), ("elevation_deg", el)])],
+    );
     assert_eq!(
-        light,
-        json(plain(), "truth/lighting.json"),
-        "default shadows use the campaign light"
+        json(&dir, "truth/lighting.json"),
+        plain_light,
+        "the shadows' light is the lab light"
     );
     let (mut darker, mut brighter, mut n) = (0usize, 0usize, 0usize);
     for cap in 0..2 {
@@ -184,6 +192,21 @@ fn shadows_only_darken_and_some_pixels_fall_to_ambient() {
     }
     assert!(darker >= 20, "{darker} shadowed pixels of {n}");
     assert!(brighter * 2000 < n, "{brighter} brighter pixels");
+}
+
+#[test]
+fn default_shadows_draw_a_low_light_and_move_the_lab_light_there() {
+    let dir = mini(7, &[("shadows", &[])]);
+    let hidden = &json(&dir, "truth/hidden.json")["effects"][0];
+    let light = json(&dir, "truth/lighting.json");
+    let el = hidden["elevation_deg"].as_f64().unwrap();
+    assert!((15.0..=30.0).contains(&el), "elevation {el}");
+    assert_eq!(light["elevation_deg"], hidden["elevation_deg"]);
+    assert_eq!(light["azimuth_deg"], hidden["azimuth_deg"]);
+    assert_eq!(
+        light["ambient"],
+        json(plain(), "truth/lighting.json")["ambient"]
+    );
 }
 
 /// Blob check for every visible marker: near the true projection, and for geometric effects
