@@ -292,3 +292,45 @@ fn hidden_low_light_shadows_are_named_with_their_direction() {
     let daz = (az - true_az + 540.0).rem_euclid(360.0) - 180.0;
     assert!(daz.abs() <= 3.0, "azimuth {az} vs {true_az}");
 }
+
+#[test]
+fn a_documented_light_five_degrees_off_is_refined_to_the_true_one() {
+    // The lab's `[lighting]` says 5° more azimuth than the light that cast the shadows: the
+    // direction search must move it back, and only because it fits better in every capture.
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("camp");
+    let db = dir.path().join("db");
+    let (camp_s, db_s) = (camp.to_str().unwrap(), db.to_str().unwrap());
+    regolith(&[
+        "corpus",
+        "generate",
+        "--preset",
+        "mini",
+        "--seed",
+        "31",
+        "--out",
+        camp_s,
+        "--hidden-effect",
+        "shadows",
+        "--effect-param",
+        "shadows.elevation_deg=25",
+    ]);
+    let toml_path = camp.join("campaign.toml");
+    let toml = std::fs::read_to_string(&toml_path).unwrap();
+    let at = toml.find("[lighting]\nazimuth_deg = ").unwrap() + "[lighting]\nazimuth_deg = ".len();
+    let end = at + toml[at..].find('\n').unwrap();
+    let true_az: f64 = toml[at..end].parse().unwrap();
+    let edited = format!("{}{:?}{}", &toml[..at], true_az + 5.0, &toml[end..]);
+    std::fs::write(&toml_path, edited).unwrap();
+    regolith(&["compile", camp_s, "--db", db_s, "--release", "mini@1"]);
+    let v = regolith(&["gap", db_s, "--entry", "laser/0.01"]);
+    assert_eq!(named(&v), ["shadows"]);
+    let az = param(&v, "shadows", "azimuth_deg");
+    let el = param(&v, "shadows", "elevation_deg");
+    let daz = (az - true_az + 540.0).rem_euclid(360.0) - 180.0;
+    assert!(
+        daz.abs() <= 2.0,
+        "azimuth {az} vs true {true_az} (documented +5°)"
+    );
+    assert!((el - 25.0).abs() <= 3.0, "elevation {el}");
+}
