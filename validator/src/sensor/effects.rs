@@ -43,7 +43,7 @@ const EXPOSURE: &[ParamRange] = &[p("gain", 0.7, 1.3, 1.0), p("offset", -0.05, 0
 /// A low lab light: the shadows a camera sees on a testbed of cm-sized rocks and gentle hills
 /// are the hills' long ones. Measured on `mini` (the prediction's shadow pixels in all four
 /// views): 2 079 and 2 839 at 25° elevation (two seeds), 0, 0 and 177 at 35° (three seeds),
-/// none at 39–66° (five seeds).
+/// none at 39–66° (four seeds).
 const SHADOWS: &[ParamRange] = &[
     p("azimuth_deg", 0.0, 360.0, 0.0),
     p("elevation_deg", 15.0, 30.0, 90.0),
