@@ -22,10 +22,9 @@ fn regolith(args: &[&str]) -> Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
-/// Generates and compiles a mini campaign; returns the database path.
-fn campaign(dir: &Path, extra: &[&str]) -> String {
+/// Generates mini seed 31 into `dir/camp` with the `extra` generator arguments.
+fn generate(dir: &Path, extra: &[&str]) -> std::path::PathBuf {
     let camp = dir.join("camp");
-    let db = dir.join("db");
     let mut args = vec![
         "corpus",
         "generate",
@@ -38,6 +37,12 @@ fn campaign(dir: &Path, extra: &[&str]) -> String {
     ];
     args.extend_from_slice(extra);
     regolith(&args);
+    camp
+}
+
+/// Compiles `camp` into `dir/db` as `mini@1`; returns the database path.
+fn compile(dir: &Path, camp: &Path) -> String {
+    let db = dir.join("db");
     regolith(&[
         "compile",
         camp.to_str().unwrap(),
@@ -47,6 +52,12 @@ fn campaign(dir: &Path, extra: &[&str]) -> String {
         "mini@1",
     ]);
     db.to_string_lossy().into_owned()
+}
+
+/// Generates and compiles a mini campaign; returns the database path.
+fn campaign(dir: &Path, extra: &[&str]) -> String {
+    let camp = generate(dir, extra);
+    compile(dir, &camp)
 }
 
 fn named(v: &Value) -> Vec<String> {
@@ -298,23 +309,15 @@ fn a_documented_light_five_degrees_off_is_refined_to_the_true_one() {
     // The lab's `[lighting]` says 5° more azimuth than the light that cast the shadows: the
     // direction search must move it back, and only because it fits better in every capture.
     let dir = tempfile::tempdir().unwrap();
-    let camp = dir.path().join("camp");
-    let db = dir.path().join("db");
-    let (camp_s, db_s) = (camp.to_str().unwrap(), db.to_str().unwrap());
-    regolith(&[
-        "corpus",
-        "generate",
-        "--preset",
-        "mini",
-        "--seed",
-        "31",
-        "--out",
-        camp_s,
-        "--hidden-effect",
-        "shadows",
-        "--effect-param",
-        "shadows.elevation_deg=25",
-    ]);
+    let camp = generate(
+        dir.path(),
+        &[
+            "--hidden-effect",
+            "shadows",
+            "--effect-param",
+            "shadows.elevation_deg=25",
+        ],
+    );
     let toml_path = camp.join("campaign.toml");
     let toml = std::fs::read_to_string(&toml_path).unwrap();
     let at = toml.find("[lighting]\nazimuth_deg = ").unwrap() + "[lighting]\nazimuth_deg = ".len();
@@ -322,8 +325,8 @@ fn a_documented_light_five_degrees_off_is_refined_to_the_true_one() {
     let true_az: f64 = toml[at..end].parse().unwrap();
     let edited = format!("{}{:?}{}", &toml[..at], true_az + 5.0, &toml[end..]);
     std::fs::write(&toml_path, edited).unwrap();
-    regolith(&["compile", camp_s, "--db", db_s, "--release", "mini@1"]);
-    let v = regolith(&["gap", db_s, "--entry", "laser/0.01"]);
+    let db = compile(dir.path(), &camp);
+    let v = regolith(&["gap", &db, "--entry", "laser/0.01"]);
     assert_eq!(named(&v), ["shadows"]);
     let az = param(&v, "shadows", "azimuth_deg");
     let el = param(&v, "shadows", "elevation_deg");
