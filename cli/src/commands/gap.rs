@@ -98,6 +98,14 @@ pub fn run(
             b.alignment_residual,
             a.alignment_residual
         );
+        if let Some(t) = &result.texture {
+            say!(
+                "  texture: matches the real albedo blurred by {:.1} mm (a faithful {:.3} m texture: {:.1} mm)",
+                t.effective_blur_m * 1e3,
+                t.cell_m,
+                t.own_blur_m * 1e3
+            );
+        }
         if let Some(i) = &index {
             say!("  report: {}", i.display());
         }

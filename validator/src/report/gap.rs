@@ -120,6 +120,17 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
             &rows,
         );
     }
+    if let Some(t) = &r.texture {
+        page.heading(2, "Texture detail", None);
+        page.paragraph(&format!(
+            "The entry's texture ({:.3} m cells) matches the real albedo blurred by {:.1} mm on the ground (band-passed correlation {:.2}); a faithful texture of these cells shows about {:.1} mm, so the texture lacks a low-pass of {:.1} mm. Renders cannot restore that detail: the remedy is a sharper texture source.",
+            t.cell_m,
+            t.effective_blur_m * 1e3,
+            t.correlation,
+            t.own_blur_m * 1e3,
+            t.excess_m * 1e3
+        ));
+    }
     page.heading(2, "Gap before and after", None);
     let row = |name: &str, f: &dyn Fn(&Metrics) -> f64| {
         vec![

@@ -28,6 +28,28 @@ use super::{gaussian_blur, Effect};
 /// Full scale of the digital numbers.
 const FULL_SCALE: f64 = 255.0;
 
+/// Undoes the response curve and the black level of `effects` on digital numbers: the result
+/// is proportional to the radiance reaching the sensor (exposure gain and vignetting are
+/// factors and stay; blur and noise cannot be undone). Ratios of two images of one view are
+/// then ratios of radiance.
+pub fn undo_response(effects: &[Effect], dn: &[f32]) -> Vec<f32> {
+    let mut img: Vec<f64> = dn.iter().map(|&v| f64::from(v)).collect();
+    for e in effects.iter().rev() {
+        if let Effect::Gamma { gamma } = *e {
+            if gamma > 0.0 {
+                img.iter_mut()
+                    .for_each(|px| *px = FULL_SCALE * (px.max(0.0) / FULL_SCALE).powf(gamma));
+            }
+        }
+    }
+    for e in effects.iter().rev() {
+        if let Effect::Exposure { offset, .. } = *e {
+            img.iter_mut().for_each(|px| *px -= FULL_SCALE * offset);
+        }
+    }
+    img.into_iter().map(|v| v as f32).collect()
+}
+
 /// Vignetting gain at pixel `(u, v)` for `strength` (see the module docs).
 pub fn vignetting_factor(
     strength: f64,
@@ -116,4 +138,35 @@ pub(crate) fn apply(
         }
     }
     img.into_iter().map(|v| v as f32).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn undo_response_inverts_gamma_and_black_level_up_to_the_gain() {
+        let effects = [
+            Effect::Exposure {
+                gain: 0.8,
+                offset: 0.03,
+            },
+            Effect::Gamma { gamma: 1.7 },
+        ];
+        let radiance = [0.1f32, 0.2, 0.4, 0.8];
+        let cam = CameraModel::pinhole(4, 1, 2.0, 2.0, 2.0, 0.5);
+        let dn = apply(&effects, &radiance, 4, 1, &cam, 0);
+        let lin = undo_response(&effects, &dn);
+        for (l, r) in lin.iter().zip(&radiance) {
+            assert!(
+                (f64::from(*l) - 255.0 * 0.8 * f64::from(*r)).abs() < 1e-3,
+                "{l} vs {r}"
+            );
+        }
+        // Without a response curve or black level the images pass unchanged.
+        assert_eq!(
+            undo_response(&[Effect::Blur { sigma_px: 1.0 }], &[3.0, 4.0]),
+            [3.0, 4.0]
+        );
+    }
 }

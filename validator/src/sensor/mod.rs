@@ -166,7 +166,9 @@ impl SensorModel {
         (opts, light)
     }
 
-    /// `grid` low-passed by every `texture-lowpass` effect (sigma converted to cells).
+    /// `grid` low-passed by every `texture-lowpass` effect (sigma converted to cells): how the
+    /// corpus makes an entry's texture too smooth. Renders never call it — in an entry's model
+    /// the effect records that its texture lacks that detail (see `gap::texture`).
     pub fn albedo(&self, grid: &AlbedoGrid) -> AlbedoGrid {
         let mut out = grid.clone();
         for e in &self.effects {
