@@ -1090,6 +1090,22 @@ mod tests {
     use super::*;
 
     #[test]
+    fn affine_sse_ignores_gain_and_offset_and_keeps_the_rest() {
+        let pred = [10.0f32, 20.0, 30.0, 40.0, 50.0];
+        let real: Vec<f32> = pred.iter().map(|p| 2.0 * p + 3.0).collect();
+        let all: Vec<usize> = (0..5).collect();
+        assert!(affine_sse(&real, &pred, &all) < 1e-6);
+        // A residual orthogonal to (1, pred) stays whole: +1, −2, +2, −2, +1 → 14.
+        let bumped: Vec<f32> = real
+            .iter()
+            .zip([1.0f32, -2.0, 2.0, -2.0, 1.0])
+            .map(|(r, d)| r + d)
+            .collect();
+        assert!((affine_sse(&bumped, &pred, &all) - 14.0).abs() < 1e-3);
+        assert_eq!(affine_sse(&real, &pred, &[2]), 0.0);
+    }
+
+    #[test]
     fn jackknife_spreads_fold_fits_and_never_lowers_the_formal_error() {
         // Two folds: θ = 1 and 2 → sqrt(1/2 · (0.25 + 0.25)) = 0.5; a constant parameter → 0.
         let j = jackknife(2, &|f| vec![1.0 + f as f64, 7.0]).unwrap_or_default();
