@@ -43,6 +43,7 @@ pub mod views;
 
 use std::collections::BTreeMap;
 
+use regolith_format::frames::Pose;
 use regolith_reader::{ReaderError, ReleaseView};
 use serde::Serialize;
 
@@ -913,7 +914,6 @@ fn texture_stage(
         albedo: uniform,
     };
     let flat_scene = Scene::new(&flat_geometry);
-    let textured = ctx.predict_sampled(model, 1);
     let flat: Vec<Prediction> = ctx
         .views
         .iter()
@@ -923,25 +923,29 @@ fn texture_stage(
     // in bends the ratios and read mini seed 102's faithful texture 1.4 mm blurrier).
     let linear = |dn: &[f32]| crate::sensor::image::undo_response(&model.effects, dn);
     let means: Vec<Vec<f32>> = ctx.views.iter().map(|v| linear(&v.mean())).collect();
-    let textured_lin: Vec<Vec<f32>> = textured.iter().map(|p| linear(&p.dn)).collect();
     let flat_lin: Vec<Vec<f32>> = flat.iter().map(|p| linear(&p.dn)).collect();
+    let poses: Vec<Pose> = ctx
+        .views
+        .iter()
+        .map(|v| model.pose(&v.ground_from_camera))
+        .collect();
     let views: Vec<texture::TextureView<'_>> = ctx
         .views
         .iter()
         .enumerate()
         .map(|(i, v)| texture::TextureView {
             real: &means[i],
-            textured: &textured_lin[i],
             flat: &flat_lin[i],
-            mask: &textured[i].mask,
-            depth: &textured[i].depth,
-            fx: textured[i].camera.fx,
+            mask: &flat[i].mask,
+            depth: &flat[i].depth,
+            camera: &flat[i].camera,
+            ground_from_camera: &poses[i],
             w: v.width,
             h: v.height,
             fold: ctx.folds[i],
         })
         .collect();
-    let m = texture::TextureMeasure::new(&views)?;
+    let m = texture::TextureMeasure::new(&views, albedo)?;
     let (blur, correlation) = m.blur_m(&|_| true)?;
     let cell = albedo.cell_m;
     let excess = texture::excess_m(blur, cell);
@@ -1034,6 +1038,35 @@ fn noise_stage(ctx: &Ctx<'_>, preds: &[Prediction], model: &mut SensorModel, out
             noise::NOISE_FLOOR_DN
         ),
     ));
+}
+
+/// The texture figures ([`texture`]) of `entry` under its stored model, without the other
+/// stages: how the own-blur constants are measured on campaigns with nothing hidden (the
+/// `texture_blur` example). `None` for a mesh entry or without terrain in view.
+pub fn texture_figures(
+    view: &ReleaseView,
+    entry: &str,
+    captures: &[String],
+) -> Result<Option<TextureFigures>, ReaderError> {
+    let geometry_data = entry_geometry(view, entry)?;
+    let views = load_views(view, captures)?;
+    let f = folds(&views);
+    let n_folds = f.iter().max().map_or(1, |m| m + 1);
+    let ctx = Ctx {
+        scene: Scene::new(&geometry_data),
+        light: campaign_light(view)?,
+        views,
+        folds: f,
+        n_folds,
+        supersample: 1,
+    };
+    let mut model = stored_model(view, entry)?;
+    Ok(texture_stage(
+        &ctx,
+        &geometry_data,
+        &mut model,
+        &mut Vec::new(),
+    ))
 }
 
 /// Runs the gap workflow on `entry` (see the module docs).

@@ -34,6 +34,9 @@ pub mod mesh;
 mod raster;
 pub mod shading;
 
+/// The renderer's own inverse of the lens distortion, for code that back-projects its pixels.
+pub(crate) use raster::unproject;
+
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
 
