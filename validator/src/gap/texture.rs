@@ -6,7 +6,7 @@
 //! correlated with the texture). The comparison is made **on the ground, in the texture's own
 //! cells**: every terrain pixel is back-projected through the render's depth and the pose and
 //! lens the render used, and the ratios of the pixels that land in a cell are averaged (a cell
-//! counts once it receives [`MIN_PIXELS`]). A view's real albedo is then the texture's grid
+//! counts once it receives three). A view's real albedo is then the texture's grid
 //! seen by the camera, so a blur of σ metres is the same Gaussian everywhere in it, whatever
 //! the view's depth and obliquity. (An earlier version compared images: a ground blur became
 //! σ / GSD pixels at the view's median depth, which is wrong along the view direction of an
