@@ -442,6 +442,85 @@ mod tests {
         assert!(measure(0.0, 4) < 0.002);
     }
 
+    /// A camera 0.9 m above flat ground looking 37° down at it (ground sample distance 2.5 mm
+    /// across the view, 4 mm along it, both growing with depth), the real image sampling a
+    /// 2 mm albedo field; the texture has 6 mm cells holding the field blurred by
+    /// `texture_sigma_m`.
+    fn measure_oblique(texture_sigma_m: f64, seed: u64) -> f64 {
+        let n = 1000;
+        let field = noise(n, n, seed);
+        let blurred = gaussian_blur(&field, n, n, texture_sigma_m / 0.002);
+        let fine = AlbedoGrid {
+            origin_m: [0.0, 2.0],
+            cell_m: 0.002,
+            width: n,
+            height: n,
+            value: field,
+        };
+        let cells = n / 3;
+        let texture = AlbedoGrid {
+            origin_m: [0.0, 2.0],
+            cell_m: 0.006,
+            width: cells,
+            height: cells,
+            value: (0..cells * cells)
+                .map(|k| blurred[(k / cells) * 3 * n + (k % cells) * 3])
+                .collect(),
+        };
+        let (w, h) = (480, 360);
+        let camera = CameraModel::pinhole(w as u32, h as u32, 600.0, 600.0, 239.5, 179.5);
+        let view = crate::render::View::look_at(camera.clone(), [1.0, 0.0, 0.9], [1.0, 1.2, 0.0]);
+        let pose = view.ground_from_camera;
+        let (mut real, mut depth, mut mask) = (
+            vec![0.0f32; w * h],
+            vec![f32::NAN; w * h],
+            vec![false; w * h],
+        );
+        for y in 0..h {
+            for x in 0..w {
+                let (xn, yn) = camera.unproject(x as f64, y as f64);
+                let d = pose.rotate([xn, yn, 1.0]);
+                if d[2] >= 0.0 {
+                    continue;
+                }
+                let t = -0.9 / d[2];
+                let (gx, gy) = (1.0 + t * d[0], t * d[1]);
+                if !(0.05..1.95).contains(&gx) || !(0.05..1.95).contains(&gy) {
+                    continue;
+                }
+                let i = y * w + x;
+                real[i] = 200.0 * crate::render::shading::sample_albedo(&fine, gx, gy);
+                depth[i] = t as f32;
+                mask[i] = true;
+            }
+        }
+        let flat = vec![200.0f32; w * h];
+        let v = TextureView {
+            real: &real,
+            flat: &flat,
+            mask: &mask,
+            depth: &depth,
+            camera: &camera,
+            ground_from_camera: &pose,
+            w,
+            h,
+            fold: 0,
+        };
+        let m = TextureMeasure::new(&[v], &texture).expect("enough terrain");
+        m.blur_m(&|_| true).expect("one view").0
+    }
+
+    #[test]
+    fn an_oblique_view_reads_the_ground_blur() {
+        // The same Gaussian on the ground whatever the depth and the foreshortening; the real
+        // side's pixels (4 mm along the view at the near edge) and bilinear sampling blur it a
+        // little, so the reading is a little below the truth.
+        for (sigma, seed) in [(0.012, 6), (0.02, 7)] {
+            let got = measure_oblique(sigma, seed);
+            assert!((got - sigma).abs() < 0.002, "{sigma} → {got}");
+        }
+    }
+
     #[test]
     fn the_excess_is_zero_for_a_faithful_texture_and_adds_in_quadrature() {
         let own = own_blur_m(0.01);
