@@ -248,7 +248,27 @@ struct Ctx<'a> {
     supersample: u32,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    /// The views of `captures` (all when empty) of the release, with the entry's `geometry`.
+    fn load(
+        view: &ReleaseView,
+        geometry: &'a Geometry,
+        captures: &[String],
+        supersample: u32,
+    ) -> Result<Ctx<'a>, ReaderError> {
+        let views = load_views(view, captures)?;
+        let folds = folds(&views);
+        let n_folds = folds.iter().max().map_or(1, |m| m + 1);
+        Ok(Ctx {
+            scene: Scene::new(geometry),
+            light: campaign_light(view)?,
+            views,
+            folds,
+            n_folds,
+            supersample: supersample.max(1),
+        })
+    }
+
     fn predict_all(&self, model: &SensorModel) -> Vec<Prediction> {
         self.predict_sampled(model, self.supersample)
     }
@@ -1049,17 +1069,7 @@ pub fn texture_figures(
     captures: &[String],
 ) -> Result<Option<TextureFigures>, ReaderError> {
     let geometry_data = entry_geometry(view, entry)?;
-    let views = load_views(view, captures)?;
-    let f = folds(&views);
-    let n_folds = f.iter().max().map_or(1, |m| m + 1);
-    let ctx = Ctx {
-        scene: Scene::new(&geometry_data),
-        light: campaign_light(view)?,
-        views,
-        folds: f,
-        n_folds,
-        supersample: 1,
-    };
+    let ctx = Ctx::load(view, &geometry_data, captures, 1)?;
     let mut model = stored_model(view, entry)?;
     Ok(texture_stage(
         &ctx,
@@ -1072,17 +1082,7 @@ pub fn texture_figures(
 /// Runs the gap workflow on `entry` (see the module docs).
 pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResult, ReaderError> {
     let geometry_data = entry_geometry(view, entry)?;
-    let views = load_views(view, &opts.captures)?;
-    let f = folds(&views);
-    let n_folds = f.iter().max().map_or(1, |m| m + 1);
-    let ctx = Ctx {
-        scene: Scene::new(&geometry_data),
-        light: campaign_light(view)?,
-        views,
-        folds: f,
-        n_folds,
-        supersample: opts.supersample.max(1),
-    };
+    let ctx = Ctx::load(view, &geometry_data, &opts.captures, opts.supersample)?;
     let model_before = stored_model(view, entry)?;
     let preds_before = ctx.predict_all(&model_before);
     let metrics_before = measure::measure(&ctx.views, &preds_before, &model_before);

@@ -406,7 +406,6 @@ mod tests {
                 .collect(),
         };
         let real: Vec<f32> = albedo.iter().map(|v| v * 200.0).collect();
-        let flat = vec![200.0f32; w * h];
         // Sky along the top rows: outside the terrain.
         let mask: Vec<bool> = (0..w * h).map(|i| i / w >= 10).collect();
         let depth = vec![1.0f32; w * h];
@@ -415,18 +414,32 @@ mod tests {
             [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
             [0.0, 0.0, 1.0],
         );
+        blur_of(&real, &mask, &depth, &camera, &down, &texture)
+    }
+
+    /// The effective blur of one view of `texture` (a uniform shading of 200 DN).
+    fn blur_of(
+        real: &[f32],
+        mask: &[bool],
+        depth: &[f32],
+        camera: &CameraModel,
+        pose: &Pose,
+        texture: &AlbedoGrid,
+    ) -> f64 {
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        let flat = vec![200.0f32; w * h];
         let v = TextureView {
-            real: &real,
+            real,
             flat: &flat,
-            mask: &mask,
-            depth: &depth,
-            camera: &camera,
-            ground_from_camera: &down,
+            mask,
+            depth,
+            camera,
+            ground_from_camera: pose,
             w,
             h,
             fold: 0,
         };
-        let m = TextureMeasure::new(&[v], &texture).expect("enough terrain");
+        let m = TextureMeasure::new(&[v], texture).expect("enough terrain");
         m.blur_m(&|_| true).expect("one view").0
     }
 
@@ -494,20 +507,7 @@ mod tests {
                 mask[i] = true;
             }
         }
-        let flat = vec![200.0f32; w * h];
-        let v = TextureView {
-            real: &real,
-            flat: &flat,
-            mask: &mask,
-            depth: &depth,
-            camera: &camera,
-            ground_from_camera: &pose,
-            w,
-            h,
-            fold: 0,
-        };
-        let m = TextureMeasure::new(&[v], &texture).expect("enough terrain");
-        m.blur_m(&|_| true).expect("one view").0
+        blur_of(&real, &mask, &depth, &camera, &pose, &texture)
     }
 
     #[test]
