@@ -174,15 +174,61 @@ pub struct PhotometricFit {
     pub params: [f64; 4],
     /// Standard errors (inactive ones 0).
     pub std_err: [f64; 4],
-    /// Mean squared error on the fitted samples, DN².
+    /// Mean squared residual on the fitted samples (DN² for [`fit`], radiance² for
+    /// [`fit_radiance`]).
     pub mse: f64,
 }
 
-/// Fits the subset `effects` on the samples whose fold passes `use_fold`.
+/// Radiance that the model at full parameters `p` maps to sample `i`'s real DN (the inverse of
+/// [`predict`]).
+pub fn invert(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
+    let strength = p[2].clamp(0.0, 0.999_999);
+    let c = (1.0 - strength).powf(-0.5) - 1.0;
+    let v = 1.0 / (1.0 + c * s.rho2[i]).powi(2);
+    let y = (s.real[i] / 255.0).max(0.0);
+    let e = if (p[3] - 1.0).abs() < 1e-12 {
+        y
+    } else {
+        y.powf(p[3])
+    };
+    (e - p[1]) / (p[0] * v).max(1e-9)
+}
+
+/// Fits the subset `effects` on the samples whose fold passes `use_fold`, by the error of the
+/// predicted DN (the model's own error measure, which held-out comparisons use).
 pub fn fit(
     s: &Samples,
     effects: &[&str],
     use_fold: &(dyn Fn(usize) -> bool + Sync),
+) -> PhotometricFit {
+    fit_by(s, effects, use_fold, &|s, i, p| {
+        predict(s, i, p) - s.real[i]
+    })
+}
+
+/// [`fit`] by the error of the radiance the real DN maps back to: the parameters' estimate.
+/// Almost all of the error is on the render's side (texture and shading the entry gets
+/// wrong; the real side is a frame mean, low-passed), and a fit that predicts DN from an
+/// erroneous radiance attenuates its slope (errors in variables: exposure gains of 0.76 and
+/// 0.93 came out 0.66 and 0.73, their offsets compensating). Predicting the radiance instead
+/// puts the error where it is.
+pub fn fit_radiance(
+    s: &Samples,
+    effects: &[&str],
+    use_fold: &(dyn Fn(usize) -> bool + Sync),
+) -> PhotometricFit {
+    fit_by(s, effects, use_fold, &|s, i, p| {
+        invert(s, i, p) - s.radiance[i]
+    })
+}
+
+type Residual = dyn Fn(&Samples, usize, &[f64; 4]) -> f64 + Sync;
+
+fn fit_by(
+    s: &Samples,
+    effects: &[&str],
+    use_fold: &(dyn Fn(usize) -> bool + Sync),
+    residual: &Residual,
 ) -> PhotometricFit {
     let idx = free(effects);
     let rows: Vec<usize> = (0..s.len()).filter(|&i| use_fold(s.fold[i])).collect();
@@ -196,7 +242,7 @@ pub fn fit(
     let f = |q: &[f64], out: &mut Vec<f64>| {
         let p = expand(q);
         out.clear();
-        out.extend(rows.iter().map(|&i| predict(s, i, &p) - s.real[i]));
+        out.extend(rows.iter().map(|&i| residual(s, i, &p)));
     };
     let sol = solve(
         &Problem {
