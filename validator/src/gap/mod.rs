@@ -13,7 +13,8 @@
 //!    `vignetting`, `gamma`), then cast `shadows` of the campaign light where they would fall
 //!    ([`shadows`]: too small and sharp for the low-passed photometric fit; the direction is then
 //!    refined), then `texture-lowpass` ([`texture`]: the texture's effective blur against the
-//!    real albedo, beyond what a faithful texture of its cell size shows; heightfield entries),
+//!    real albedo gathered on the ground in the texture's cells, beyond what a faithful texture
+//!    of its cell size shows; heightfield entries),
 //!    then `noise` ([`noise`], from the repeat frames). Within a stage every subset of candidates is fitted and
 //!    scored on held-out captures, and the subset is chosen jointly ([`select`]); an effect is
 //!    named only if it explains at least a set share of the stage's held-out error (geometry:
@@ -28,6 +29,11 @@
 //! the smallest level or contrast change named (exposure, gamma) is about
 //! 5 DN RMS, because renders of laser DEMs are themselves a little darker and flatter than the
 //! real images (a radial falloff cannot mimic that, so vignetting is named from 3 DN²).
+//! Parameters are as good as the views are many: from mini's two captures (four views) a
+//! vignetting strength comes out within ~10–25 % and a pose bias's rotation and translation
+//! trade off (one seed's 0.49° came out with the opposite sign), while from estec's eight captures a hidden
+//! vignetting of 0.469 came out 0.486 and a pose bias within 0.036° and 0.7 mm per axis
+//! (seed 2).
 
 pub mod apply;
 pub mod blur;
