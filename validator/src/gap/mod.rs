@@ -31,9 +31,9 @@
 //! real images (a radial falloff cannot mimic that, so vignetting is named from 3 DN²).
 //! Parameters are as good as the views are many: from mini's two captures (four views) a
 //! vignetting strength comes out within ~10–25 % and a pose bias's rotation and translation
-//! trade off (one seed's 0.49° came out with the opposite sign), while from estec's eight captures a hidden
-//! vignetting of 0.469 came out 0.486 and a pose bias within 0.036° and 0.7 mm per axis
-//! (seed 2).
+//! trade off (one seed's 0.49° came out with the opposite sign), while from estec's eight
+//! captures a hidden vignetting of 0.469 came out 0.486 and a pose bias within 0.036° and
+//! 0.7 mm per axis (seed 2).
 
 pub mod apply;
 pub mod blur;
