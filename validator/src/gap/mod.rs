@@ -1012,10 +1012,11 @@ fn texture_stage(
     });
     let e = Effect::TextureLowpass { sigma_m: excess };
     upsert(model, e);
+    // The captures' spread and the calibration's (texture::EXCESS_PER_SIGMA) in quadrature.
+    let calibration = texture::EXCESS_SPREAD * excess;
+    let spread = jack.map_or(0.0, |j| j[0]);
     let mut std_err = BTreeMap::new();
-    if let Some(j) = jack {
-        std_err.insert("sigma_m".to_string(), j[0]);
-    }
+    std_err.insert("sigma_m".to_string(), spread.hypot(calibration));
     out.push(named(
         &e,
         std_err,

@@ -128,10 +128,14 @@ pub const OWN_BLUR_PER_CELL: f64 = 0.64;
 
 /// Excess effective blur per metre of hidden low-pass: the measure reads a low-pass about
 /// 1.3 times too wide (13 hidden low-passes of 13–20 mm on both presets and 1–3 cm cells:
-/// 0.87–1.60, mean 1.32), because the real albedo image also holds shading detail the
+/// 0.87–1.60, mean 1.29), because the real albedo image also holds shading detail the
 /// uniform-albedo render lacks (relief finer than the DEM), which the blur that maximises the
 /// correlation also removes; the weaker the campaign's ambient light, the more.
 pub const EXCESS_PER_SIGMA: f64 = 1.3;
+
+/// Relative standard deviation of [`EXCESS_PER_SIGMA`] over those 13 low-passes (0.23 / 1.29):
+/// part of a fitted low-pass's standard error.
+pub const EXCESS_SPREAD: f64 = 0.17;
 
 /// Smallest low-pass named, metres: 13 mm of excess effective blur. Faithful textures stay
 /// below 6.5 mm (mini seed 102 at 1 cm cells, the widest reading); the corpus draws hidden
