@@ -509,8 +509,7 @@ fn geometry_stage(
 /// Radial displacement (normalised image units) that the distortion increments of `p` make at
 /// normalised radius 0.7 — the outer part of a NavCam image, where the terrain is.
 fn radial_shift(p: &[f64; 8]) -> f64 {
-    let r: f64 = 0.7;
-    p[0] * r.powi(3) + p[1] * r.powi(5)
+    crate::sensor::distortion_shift(p[0], p[1])
 }
 
 /// Photometric RMS (DN) of the real frame means against the predictions of `a` and of `b`, over

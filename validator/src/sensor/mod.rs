@@ -28,7 +28,7 @@ use regolith_format::frames::{quat_from_axis_angle, Pose};
 use crate::render::{AlbedoGrid, Light, RenderOptions};
 
 pub use blur::gaussian_blur;
-pub use effects::ParamRange;
+pub use effects::{distortion_shift, ParamRange, MIN_DISTORTION_SHIFT};
 pub use image::quantise_u8;
 
 /// Ambient share of the light that [`SensorModel::render_options`] returns for a `shadows`
