@@ -119,8 +119,9 @@ pub enum Command {
         texture_blur_m: f64,
     },
     /// Find where simulation and measurement disagree for one entry, name the missing effects
-    /// (vignetting, blur, noise, gamma, exposure, shadows, distortion, pose-bias), fit them and
-    /// show the gap before/after; `--apply` writes the fitted sensor model into a child release.
+    /// (vignetting, blur, noise, gamma, exposure, shadows, distortion, pose-bias,
+    /// texture-lowpass), fit them and show the gap before/after; `--apply` writes the fitted
+    /// sensor model into a child release.
     Gap {
         /// The database folder.
         db: PathBuf,
@@ -200,6 +201,10 @@ pub enum CorpusAction {
         /// Full resolution (2.5 mm truth grid, the real 0.030° scan step).
         #[arg(long)]
         full: bool,
+        /// Capture locations (default: the preset's, estec 8, mini 2). More captures pin the
+        /// gap workflow's fitted parameters down more tightly.
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=64))]
+        captures: Option<u32>,
         /// Hidden effects, comma-separated: vignetting, blur, noise, gamma, exposure, shadows,
         /// distortion, pose-bias, texture-lowpass.
         #[arg(long, value_name = "E[,E...]")]

@@ -33,6 +33,7 @@ fn every_malformed_input_gives_exit_2_naming_file_and_place() {
             preset: Preset::Mini,
             seed: 5,
             full: false,
+            captures: None,
             hidden: vec![],
         },
         &good,

@@ -207,6 +207,7 @@ fn sfm_aligns_from_ground_control_points_with_and_without_scans() {
             preset: Preset::Mini,
             seed: SEED,
             full: false,
+            captures: None,
             hidden: vec![],
         },
         &camp,

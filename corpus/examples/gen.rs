@@ -22,6 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             preset,
             seed,
             full,
+            captures: None,
             hidden,
         },
         std::path::Path::new(out),

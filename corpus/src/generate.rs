@@ -31,6 +31,9 @@ pub struct GenerateOptions {
     pub seed: u64,
     /// Full resolution: 2.5 mm truth grid and the real 0.030° scan step.
     pub full: bool,
+    /// Capture locations, if not the preset's own count. The first locations are the same
+    /// whatever the count (poses are drawn one after the other from the captures' stream).
+    pub captures: Option<usize>,
     /// Hidden effects and their parameter overrides.
     pub hidden: Vec<HiddenSpec>,
 }
@@ -54,7 +57,10 @@ pub fn generate(
     out: &Path,
     progress: &dyn Fn(&str, f64),
 ) -> Result<Summary, CorpusError> {
-    let cfg = PresetConfig::of(opts.preset);
+    let mut cfg = PresetConfig::of(opts.preset);
+    if let Some(n) = opts.captures {
+        cfg.captures = n;
+    }
     let seed = opts.seed;
     let mut times = Vec::new();
     let mut clock = Instant::now();

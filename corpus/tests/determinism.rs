@@ -27,11 +27,16 @@ fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
 }
 
 fn run(threads: usize, seed: u64) -> BTreeMap<String, Vec<u8>> {
+    run_with(threads, seed, None)
+}
+
+fn run_with(threads: usize, seed: u64, captures: Option<usize>) -> BTreeMap<String, Vec<u8>> {
     let dir = tempfile::tempdir().unwrap();
     let opts = GenerateOptions {
         preset: Preset::Mini,
         seed,
         full: false,
+        captures,
         hidden: vec![
             HiddenSpec::named("vignetting"),
             HiddenSpec::named("noise"),
@@ -131,5 +136,32 @@ fn bad_inputs_cover_every_kind_with_a_readme() {
     assert!(
         toml::from_str::<toml::Value>(&escape).is_ok(),
         "the campaign itself parses; only the path is bad"
+    );
+}
+
+#[test]
+fn more_captures_keep_the_first_locations() {
+    let two = run_with(2, 11, None);
+    let four = run_with(2, 11, Some(4));
+    let locs = |m: &BTreeMap<String, Vec<u8>>| {
+        m.keys()
+            .filter(|k| k.starts_with("vicon/loc"))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(locs(&two), ["vicon/loc01.csv", "vicon/loc02.csv"]);
+    assert_eq!(locs(&four).len(), 4);
+    for (name, bytes) in &two {
+        let per_location = name.starts_with("captures/") || name.starts_with("vicon/loc");
+        if per_location {
+            assert!(
+                four.get(name) == Some(bytes),
+                "{name} changed with more captures"
+            );
+        }
+    }
+    assert_ne!(
+        two["campaign.toml"], four["campaign.toml"],
+        "the campaign lists them"
     );
 }

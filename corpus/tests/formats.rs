@@ -72,6 +72,7 @@ fn vrml_mesh_counts_match_the_ply_twin() {
         preset: regolith_corpus::Preset::Mini,
         seed: 3,
         full: false,
+        captures: None,
         hidden: vec![],
     };
     regolith_corpus::generate(&opts, dir.path(), &|_, _| {}).unwrap();

@@ -3,8 +3,9 @@
 //! hidden; each is compiled and `gap` runs on its finest laser entry. Prints one line per case
 //! (hidden → named, fitted vs true parameters, gap before → after) and the matrix.
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES]`
-//! (`CASES`: comma-separated case labels, e.g. `none,distortion`; default all).
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES]`
+//! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
+//! locations per campaign, default the preset's 2).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::BTreeMap;
@@ -17,7 +18,13 @@ use regolith_reader::{Database, Writer};
 use regolith_validator::gap::{self, GapOptions};
 use regolith_validator::sensor::Effect;
 
-fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str]) -> (Vec<String>, String) {
+fn run_case(
+    root: &Path,
+    label: &str,
+    seed: u64,
+    hidden: &[&str],
+    captures: Option<usize>,
+) -> (Vec<String>, String) {
     let dir = root.join(format!("{label}-{seed}"));
     let _ = std::fs::remove_dir_all(&dir);
     let camp = dir.join("camp");
@@ -25,6 +32,7 @@ fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str]) -> (Vec<String
         preset: Preset::Mini,
         seed,
         full: false,
+        captures,
         hidden: hidden.iter().map(|h| HiddenSpec::named(h)).collect(),
     };
     generate(&opts, &camp, &|_, _| {}).unwrap();
@@ -82,7 +90,8 @@ fn main() {
     ] {
         cases.push((pair.join("+"), pair.to_vec()));
     }
-    if let Some(only) = args.get(2) {
+    let captures: Option<usize> = args.get(3).map(|s| s.parse().unwrap());
+    if let Some(only) = args.get(2).filter(|s| *s != "all") {
         let only: Vec<&str> = only.split(',').collect();
         cases.retain(|(label, _)| only.contains(&label.as_str()));
     }
@@ -92,7 +101,7 @@ fn main() {
     let mut total = 0usize;
     for (label, hidden) in &cases {
         for &seed in &seeds {
-            let (named, line) = run_case(&root, label, seed, hidden);
+            let (named, line) = run_case(&root, label, seed, hidden, captures);
             println!("{line}");
             let row = matrix.entry(label.clone()).or_default();
             if named.is_empty() {

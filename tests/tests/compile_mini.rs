@@ -23,6 +23,7 @@ fn mini(dir: &Path, seed: u64) {
         preset: Preset::Mini,
         seed,
         full: false,
+        captures: None,
         hidden: vec![],
     };
     generate(&opts, dir, &|_, _| {}).unwrap();

@@ -31,6 +31,7 @@ fn sfm_colours_drape_on_the_laser_geometry() {
             preset: Preset::Mini,
             seed: 7,
             full: false,
+            captures: None,
             hidden: vec![],
         },
         &camp,

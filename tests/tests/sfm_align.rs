@@ -115,6 +115,7 @@ fn aligns_the_mini_sfm_mesh_onto_the_laser_scans() {
         preset: Preset::Mini,
         seed: 2024,
         full: false,
+        captures: None,
         hidden: vec![],
     };
     generate(&opts, dir, &|_, _| {}).unwrap();
@@ -200,6 +201,7 @@ fn laser_only_scale_within_half_a_percent_on_more_terrains() {
             preset: Preset::Mini,
             seed,
             full: false,
+            captures: None,
             hidden: vec![],
         };
         generate(&opts, dir, &|_, _| {}).unwrap();

@@ -18,6 +18,7 @@ fn certificates_are_bound_stored_and_verified() {
             preset: Preset::Mini,
             seed: 21,
             full: false,
+            captures: None,
             hidden: vec![],
         },
         &camp,

@@ -15,6 +15,7 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         preset,
         seed,
         full,
+        captures,
         hidden_effect,
         effect_param,
         out,
@@ -34,6 +35,7 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         },
         seed: *seed,
         full: *full,
+        captures: captures.map(|n| n as usize),
         hidden,
     };
     let bar = if json {

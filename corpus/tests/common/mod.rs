@@ -26,6 +26,7 @@ pub fn mini(seed: u64, hidden: &[(&str, &[(&str, f64)])]) -> PathBuf {
             preset: Preset::Mini,
             seed,
             full: false,
+            captures: None,
             hidden: specs,
         },
         &dir,
