@@ -1,9 +1,11 @@
 //! Shared helpers of the end-to-end tests: [`sample`] builds a small release with one entry of
 //! every kind, deterministically, through the real encoders and the real writer. The test vectors
 //! in `format-spec/test-vectors/` are this release, and the crash, corruption and CLI tests use it.
-//! [`albedo_truth`] compares an entry's texture with a corpus campaign's true albedo.
+//! [`albedo_truth`] compares an entry's texture with a corpus campaign's true albedo;
+//! [`gap_case`] runs one case of the gap workflow's proof on hidden effects.
 
 pub mod albedo_truth;
+pub mod gap_case;
 pub mod sample;
 
 /// The workspace root (for finding `format-spec/`, `../shared/` and the binaries).

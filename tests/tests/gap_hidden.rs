@@ -1,0 +1,225 @@
+//! The gap workflow proven on hidden effects: `mini` campaigns with each catalogue effect hidden
+//! in turn, three pairs and nothing hidden, two seeds each, parameters drawn by the corpus from
+//! its documented ranges (not chosen by the test). Every case must name exactly what was hidden
+//! (pairs: both, in either order; nothing for nothing), fit the parameters within the
+//! tolerances below, and shrink the photometric gap by at least half of its excess over the
+//! same seed's no-effect baseline. All violations are collected and reported together, with the
+//! confusion matrix.
+//!
+//! Tolerances are those measured on these campaigns (the gap module's docs, known limits);
+//! where they are looser than the workflow's targets, what limits them is how little of the
+//! camera's field and depth range mini's two capture locations show (six locations did not
+//! fix the geometric ones), not the optimiser.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::collections::BTreeMap;
+
+use regolith_format::frames::Pose;
+use regolith_tests::gap_case::{cases, run_case, CaseResult};
+use regolith_validator::sensor::{distortion_shift, Effect, SensorModel};
+
+const SEEDS: [u64; 2] = [101, 102];
+
+/// Response curve exponent, absolute.
+const GAMMA_TOL: f64 = 0.02;
+/// PSF σ, px.
+const BLUR_TOL_PX: f64 = 0.15;
+/// Vignetting strength, relative.
+const VIGNETTING_TOL: f64 = 0.10;
+/// Noise gain and read noise, relative (from two repeat frames per pose).
+const NOISE_TOL: f64 = 0.15;
+/// Exposure gain, relative (the offset trades against it and against the response curve).
+const EXPOSURE_GAIN_TOL: f64 = 0.10;
+/// Radial displacement of the distortion at 0.7 of the radius, relative: the displacement is
+/// what the images determine; dk1 and dk2 trade off over the terrain's part of the image.
+const DISTORTION_SHIFT_TOL: f64 = 0.35;
+/// Shadows' light direction, degrees.
+const SHADOWS_TOL_DEG: f64 = 3.0;
+/// Hidden texture low-pass σ, relative.
+const TEXTURE_TOL: f64 = 0.25;
+/// Pose bias: displacement of a point 1.5 m ahead of the camera (the terrain's distance),
+/// metres. Rotation and translation trade off on mini (seed 102: rotation x 0.34° for 0.03°
+/// with 9 mm of z); the displacement they make together at the terrain is what the images
+/// determine, here to 8.8 mm.
+const POSE_BIAS_TOL_M: f64 = 0.010;
+/// Tolerances of an effect hidden next to another are this many times wider: vignetting,
+/// exposure and the response curve are only jointly identifiable (seed 101's vignetting 0.200
+/// next to a gamma of 1.49 came out 0.239 with gamma 1.519).
+const PAIR_FACTOR: f64 = 2.5;
+/// Effects whose fit changes the mean render (noise and texture-lowpass do not, so they cannot
+/// shrink the photometric gap).
+const SHRINKS: [&str; 7] = [
+    "vignetting",
+    "blur",
+    "gamma",
+    "exposure",
+    "shadows",
+    "distortion",
+    "pose-bias",
+];
+/// An excess over the baseline below this (DN) is inside the baseline's own spread.
+const MIN_EXCESS_DN: f64 = 0.5;
+
+fn rel(fitted: f64, truth: f64) -> f64 {
+    (fitted - truth).abs() / truth.abs().max(1e-9)
+}
+
+/// Displacement (m) a pose bias makes at a point 1.5 m along the optical axis.
+fn bias_displacement(e: &Effect) -> [f64; 3] {
+    let model = SensorModel { effects: vec![*e] };
+    let p = model.pose(&Pose::IDENTITY).transform_point([0.0, 0.0, 1.5]);
+    [p[0], p[1], p[2] - 1.5]
+}
+
+fn fitted_effect(r: &CaseResult, name: &str) -> Option<Effect> {
+    let n = r.gap.named.iter().find(|n| n.effect == name)?;
+    let values: BTreeMap<&str, f64> = n.params.iter().map(|(k, v)| (k.as_str(), *v)).collect();
+    Some(Effect::neutral(name)?.with_params(&values))
+}
+
+/// Parameter checks of one named, hidden effect; violations appended to `bad`.
+fn check_params(r: &CaseResult, truth: &Effect, bad: &mut Vec<String>) {
+    let name = truth.name();
+    let widen = if r.truth.len() > 1 { PAIR_FACTOR } else { 1.0 };
+    let Some(fit) = fitted_effect(r, name) else {
+        return;
+    };
+    let (t, f) = (truth.params(), fit.params());
+    let mut check = |what: &str, ok: bool, detail: String| {
+        if !ok {
+            bad.push(format!("{name} {what}: {detail}"));
+        }
+    };
+    match name {
+        "gamma" => check(
+            "gamma",
+            (f["gamma"] - t["gamma"]).abs() <= widen * GAMMA_TOL,
+            format!("{:.4} for {:.4}", f["gamma"], t["gamma"]),
+        ),
+        "blur" => check(
+            "sigma_px",
+            (f["sigma_px"] - t["sigma_px"]).abs() <= widen * BLUR_TOL_PX,
+            format!("{:.3} for {:.3}", f["sigma_px"], t["sigma_px"]),
+        ),
+        "vignetting" => check(
+            "strength",
+            rel(f["strength"], t["strength"]) <= widen * VIGNETTING_TOL,
+            format!("{:.4} for {:.4}", f["strength"], t["strength"]),
+        ),
+        "noise" => {
+            for k in ["gain", "read_sigma"] {
+                check(
+                    k,
+                    rel(f[k], t[k]) <= widen * NOISE_TOL,
+                    format!("{:.4} for {:.4}", f[k], t[k]),
+                );
+            }
+        }
+        "exposure" => check(
+            "gain",
+            rel(f["gain"], t["gain"]) <= widen * EXPOSURE_GAIN_TOL,
+            format!("{:.4} for {:.4}", f["gain"], t["gain"]),
+        ),
+        "distortion" => {
+            let (a, b) = (
+                distortion_shift(f["dk1"], f["dk2"]),
+                distortion_shift(t["dk1"], t["dk2"]),
+            );
+            check(
+                "shift at 0.7",
+                rel(a, b) <= widen * DISTORTION_SHIFT_TOL,
+                format!("{a:.5} for {b:.5}"),
+            );
+        }
+        "shadows" => {
+            let daz = ((f["azimuth_deg"] - t["azimuth_deg"] + 540.0) % 360.0) - 180.0;
+            let del = f["elevation_deg"] - t["elevation_deg"];
+            check(
+                "direction",
+                daz.abs() <= widen * SHADOWS_TOL_DEG && del.abs() <= widen * SHADOWS_TOL_DEG,
+                format!("azimuth off {daz:.2}°, elevation off {del:.2}°"),
+            );
+        }
+        "texture-lowpass" => check(
+            "sigma_m",
+            rel(f["sigma_m"], t["sigma_m"]) <= widen * TEXTURE_TOL,
+            format!("{:.4} for {:.4}", f["sigma_m"], t["sigma_m"]),
+        ),
+        "pose-bias" => {
+            let (a, b) = (bias_displacement(&fit), bias_displacement(truth));
+            let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+            check(
+                "displacement at 1.5 m",
+                d <= widen * POSE_BIAS_TOL_M,
+                format!("{:.1} mm off", d * 1e3),
+            );
+        }
+        _ => {}
+    }
+}
+
+#[test]
+fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
+    let root = tempfile::tempdir().unwrap();
+    let mut baseline = BTreeMap::new();
+    let mut bad = Vec::new();
+    let mut matrix: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
+    let mut lines = Vec::new();
+    for (label, hidden) in cases() {
+        for seed in SEEDS {
+            let r = run_case(root.path(), &label, seed, &hidden, None);
+            lines.push(r.line(&label, seed));
+            let named = r.named();
+            let row = matrix.entry(label.clone()).or_default();
+            if named.is_empty() {
+                *row.entry("(none)".into()).or_default() += 1;
+            }
+            for n in &named {
+                *row.entry(n.clone()).or_default() += 1;
+            }
+            let mut want: Vec<String> = hidden.iter().map(|s| s.to_string()).collect();
+            let mut got = named.clone();
+            want.sort();
+            got.sort();
+            let mut case_bad = Vec::new();
+            if want != got {
+                case_bad.push(format!("named {named:?}, hidden {hidden:?}"));
+            }
+            for t in &r.truth {
+                check_params(&r, t, &mut case_bad);
+            }
+            if hidden.is_empty() {
+                baseline.insert(seed, r.gap.gap_before);
+            } else if hidden.iter().any(|h| SHRINKS.contains(h)) {
+                let base = baseline[&seed];
+                let excess = r.gap.gap_before - base;
+                let shrink = r.gap.gap_before - r.gap.gap_after;
+                if excess > MIN_EXCESS_DN && shrink < 0.5 * excess {
+                    case_bad.push(format!(
+                        "gap {:.2}→{:.2} DN shrank by {shrink:.2}, under half its excess {excess:.2} over the baseline {base:.2}",
+                        r.gap.gap_before, r.gap.gap_after
+                    ));
+                }
+            }
+            bad.extend(
+                case_bad
+                    .into_iter()
+                    .map(|b| format!("{label} seed {seed}: {b}")),
+            );
+        }
+    }
+    println!("{}", lines.join("\n"));
+    println!("\nconfusion (hidden → named counts):");
+    for (h, row) in &matrix {
+        let cells: Vec<String> = row.iter().map(|(n, c)| format!("{n}×{c}")).collect();
+        println!("  {h:<22} {}", cells.join(" "));
+    }
+    assert!(
+        bad.is_empty(),
+        "{} violations:\n{}\n\ncases:\n{}",
+        bad.len(),
+        bad.join("\n"),
+        lines.join("\n")
+    );
+}
