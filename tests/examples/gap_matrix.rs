@@ -8,10 +8,9 @@
 //! locations per campaign, default the preset's 2).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
-use regolith_tests::gap_case::{cases, run_case};
+use regolith_tests::gap_case::{cases, run_case, Confusion};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -26,34 +25,13 @@ fn main() {
         let only: Vec<&str> = only.split(',').collect();
         cases.retain(|(label, _)| only.contains(&label.as_str()));
     }
-    // matrix[hidden][named] = count
-    let mut matrix: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
-    let mut correct = 0usize;
-    let mut total = 0usize;
+    let mut matrix = Confusion::default();
     for (label, hidden) in &cases {
         for &seed in &seeds {
             let r = run_case(&root, label, seed, hidden, captures);
             println!("{}", r.line(label, seed));
-            let named = r.named();
-            let row = matrix.entry(label.clone()).or_default();
-            if named.is_empty() {
-                *row.entry("(none)".into()).or_default() += 1;
-            }
-            for n in &named {
-                *row.entry(n.clone()).or_default() += 1;
-            }
-            let mut want: Vec<String> = hidden.iter().map(|s| s.to_string()).collect();
-            let mut got = named.clone();
-            want.sort();
-            got.sort();
-            total += 1;
-            correct += usize::from(want == got);
+            matrix.add(label, hidden, &r.named());
         }
     }
-    println!("\nconfusion (hidden → named counts):");
-    for (h, row) in &matrix {
-        let cells: Vec<String> = row.iter().map(|(n, c)| format!("{n}×{c}")).collect();
-        println!("  {h:<22} {}", cells.join(" "));
-    }
-    println!("\nexactly right: {correct}/{total}");
+    println!("\n{matrix}");
 }

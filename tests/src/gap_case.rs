@@ -3,6 +3,8 @@
 //! compiled, and `gap` runs on its finest laser entry. The test `gap_hidden` and the
 //! `gap_matrix` example both run cases through here.
 
+use std::collections::BTreeMap;
+use std::fmt;
 use std::path::Path;
 
 use regolith_corpus::effects::HiddenSpec;
@@ -118,4 +120,46 @@ pub fn run_case(
         serde_json::from_slice(&std::fs::read(camp.join("truth/hidden.json")).unwrap()).unwrap();
     let truth: Vec<Effect> = serde_json::from_value(truth["effects"].clone()).unwrap();
     CaseResult { truth, gap }
+}
+
+/// The confusion matrix over cases: hidden label → named effect → count.
+#[derive(Debug, Default)]
+pub struct Confusion {
+    rows: BTreeMap<String, BTreeMap<String, usize>>,
+    /// Cases whose named set was exactly the hidden one.
+    pub correct: usize,
+    /// Cases counted.
+    pub total: usize,
+}
+
+impl Confusion {
+    /// Counts one case; true when exactly the hidden effects were named (in any order).
+    pub fn add(&mut self, label: &str, hidden: &[&str], named: &[String]) -> bool {
+        let row = self.rows.entry(label.to_string()).or_default();
+        if named.is_empty() {
+            *row.entry("(none)".into()).or_default() += 1;
+        }
+        for n in named {
+            *row.entry(n.clone()).or_default() += 1;
+        }
+        let mut want: Vec<&str> = hidden.to_vec();
+        let mut got: Vec<&str> = named.iter().map(String::as_str).collect();
+        want.sort_unstable();
+        got.sort_unstable();
+        let right = want == got;
+        self.total += 1;
+        self.correct += usize::from(right);
+        right
+    }
+}
+
+impl fmt::Display for Confusion {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "confusion (hidden → named counts):")?;
+        for (h, row) in &self.rows {
+            let cells: Vec<String> = row.iter().map(|(n, c)| format!("{n}×{c}")).collect();
+            writeln!(f, "  {h:<22} {}", cells.join(" "))?;
+        }
+        write!(f, "exactly right: {}/{}", self.correct, self.total)
+    }
 }

@@ -16,7 +16,7 @@
 use std::collections::BTreeMap;
 
 use regolith_format::frames::Pose;
-use regolith_tests::gap_case::{cases, run_case, CaseResult};
+use regolith_tests::gap_case::{cases, run_case, CaseResult, Confusion};
 use regolith_validator::sensor::{distortion_shift, Effect, SensorModel};
 
 const SEEDS: [u64; 2] = [101, 102];
@@ -164,26 +164,15 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
     let root = tempfile::tempdir().unwrap();
     let mut baseline = BTreeMap::new();
     let mut bad = Vec::new();
-    let mut matrix: BTreeMap<String, BTreeMap<String, usize>> = BTreeMap::new();
+    let mut matrix = Confusion::default();
     let mut lines = Vec::new();
     for (label, hidden) in cases() {
         for seed in SEEDS {
             let r = run_case(root.path(), &label, seed, &hidden, None);
             lines.push(r.line(&label, seed));
             let named = r.named();
-            let row = matrix.entry(label.clone()).or_default();
-            if named.is_empty() {
-                *row.entry("(none)".into()).or_default() += 1;
-            }
-            for n in &named {
-                *row.entry(n.clone()).or_default() += 1;
-            }
-            let mut want: Vec<String> = hidden.iter().map(|s| s.to_string()).collect();
-            let mut got = named.clone();
-            want.sort();
-            got.sort();
             let mut case_bad = Vec::new();
-            if want != got {
+            if !matrix.add(&label, &hidden, &named) {
                 case_bad.push(format!("named {named:?}, hidden {hidden:?}"));
             }
             for t in &r.truth {
@@ -210,14 +199,10 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
         }
     }
     println!("{}", lines.join("\n"));
-    println!("\nconfusion (hidden → named counts):");
-    for (h, row) in &matrix {
-        let cells: Vec<String> = row.iter().map(|(n, c)| format!("{n}×{c}")).collect();
-        println!("  {h:<22} {}", cells.join(" "));
-    }
+    println!("\n{matrix}");
     assert!(
         bad.is_empty(),
-        "{} violations:\n{}\n\ncases:\n{}",
+        "{} violations:\n{}\n\ncases:\n{}\n\n{matrix}",
         bad.len(),
         bad.join("\n"),
         lines.join("\n")
