@@ -11,8 +11,8 @@ use regolith_corpus::effects::HiddenSpec;
 use regolith_corpus::presets::Preset;
 use regolith_corpus::{generate, GenerateOptions};
 use regolith_reader::{Database, Writer};
-use regolith_validator::gap::{self, GapOptions, GapResult};
-use regolith_validator::sensor::Effect;
+use regolith_validator::gap::{self, GapOptions, GapResult, Metrics};
+use regolith_validator::sensor::{Effect, SensorModel};
 
 /// The cases of the proof: nothing hidden, each catalogue effect alone, and three pairs that
 /// masquerade as each other when fitted one at a time. `(label, hidden effects)`.
@@ -31,6 +31,9 @@ pub fn cases() -> Vec<(String, Vec<&'static str>)> {
     out
 }
 
+/// The entry every case runs on: mini's finest laser DEM.
+const ENTRY: &str = "laser/0.01";
+
 /// What one case produced.
 #[derive(Debug)]
 pub struct CaseResult {
@@ -38,7 +41,33 @@ pub struct CaseResult {
     pub truth: Vec<Effect>,
     /// The gap run.
     pub gap: GapResult,
+    /// The disagreement with the true hidden effects added to the entry's model: the floor
+    /// the workflow can reach (equal to `gap.metrics_before` when nothing is hidden).
+    pub floor: Metrics,
 }
+
+/// The scalar figures a gap is judged by, one per kind of effect: the photometric RMS (DN:
+/// level, contrast, falloff, blur), the geometric alignment residual (band-pass units: pose
+/// and distortion), the spectrum's RMS log10 ratio render/real over the bands (noise) and the
+/// photometric RMS in cast shadow of the light (DN: shadows).
+pub fn figures(m: &Metrics) -> [f64; 4] {
+    let lr = &m.spectrum_log_ratio;
+    let spectrum = (lr.iter().map(|x| x * x).sum::<f64>() / lr.len().max(1) as f64).sqrt();
+    [
+        m.photometric_rms_dn,
+        m.alignment_residual,
+        spectrum,
+        m.shadow_rms_dn,
+    ]
+}
+
+/// Names of [`figures`]' entries.
+pub const FIGURES: [&str; 4] = [
+    "photometric RMS, DN",
+    "alignment residual",
+    "spectrum RMS log ratio",
+    "photometric RMS in cast shadow, DN",
+];
 
 impl CaseResult {
     /// Names of the named effects, in the order named.
@@ -70,11 +99,28 @@ impl CaseResult {
                 );
             }
         }
+        let (b, a, f) = (
+            figures(&self.gap.metrics_before),
+            figures(&self.gap.metrics_after),
+            figures(&self.floor),
+        );
         format!(
-            "{label:<22} seed {seed}: named {:?}{detail}; gap {:.2}→{:.2} DN",
+            "{label:<22} seed {seed}: named {:?}{detail}; gap {:.2}→{:.2} DN (floor {:.2}), \
+             alignment {:.4}→{:.4} ({:.4}), spectrum {:.3}→{:.3} ({:.3}), \
+             in shadow {:.2}→{:.2} DN ({:.2})",
             self.named(),
-            self.gap.gap_before,
-            self.gap.gap_after
+            b[0],
+            a[0],
+            f[0],
+            b[1],
+            a[1],
+            f[1],
+            b[2],
+            a[2],
+            f[2],
+            b[3],
+            a[3],
+            f[3]
         )
     }
 }
@@ -115,11 +161,18 @@ pub fn run_case(
     drop(writer);
     let db = Database::open(dir.join("db")).unwrap();
     let view = db.release("mini@1").unwrap();
-    let gap = gap::run(&view, "laser/0.01", &GapOptions::default()).unwrap();
+    let opts = GapOptions::default();
+    let gap = gap::run(&view, ENTRY, &opts).unwrap();
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(camp.join("truth/hidden.json")).unwrap()).unwrap();
     let truth: Vec<Effect> = serde_json::from_value(truth["effects"].clone()).unwrap();
-    CaseResult { truth, gap }
+    let mut oracle: SensorModel = gap.model_before.clone();
+    for t in &truth {
+        oracle.effects.retain(|e| e.name() != t.name());
+        oracle.effects.push(*t);
+    }
+    let floor = gap::measure_model(&view, ENTRY, &oracle, &gap.model_before, &opts).unwrap();
+    CaseResult { truth, gap, floor }
 }
 
 /// The confusion matrix over cases: hidden label → named effect → count.

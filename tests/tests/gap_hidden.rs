@@ -2,9 +2,10 @@
 //! in turn, three pairs and nothing hidden, two seeds each, parameters drawn by the corpus from
 //! its documented ranges (not chosen by the test). Every case must name exactly what was hidden
 //! (pairs: both, in either order; nothing for nothing), fit the parameters within the
-//! tolerances below, and shrink the photometric gap by at least half of its excess over the
-//! same seed's no-effect baseline. All violations are collected and reported together, with the
-//! confusion matrix.
+//! tolerances below, and shrink the gap by at least half of its excess over the no-effect
+//! baseline: the same campaign measured with the true hidden effects added to the model (the
+//! floor), on the figure the effect is judged by ([`judged_by`]). All violations are collected
+//! and reported together, with the confusion matrix.
 //!
 //! Tolerances are those measured on these campaigns (the gap module's docs, known limits);
 //! where they are looser than the workflow's targets, what limits them is how little of the
@@ -16,7 +17,7 @@
 use std::collections::BTreeMap;
 
 use regolith_format::frames::Pose;
-use regolith_tests::gap_case::{cases, run_case, CaseResult, Confusion};
+use regolith_tests::gap_case::{cases, figures, run_case, CaseResult, Confusion, FIGURES};
 use regolith_validator::sensor::{distortion_shift, Effect, SensorModel};
 
 const SEEDS: [u64; 2] = [101, 102];
@@ -47,19 +48,46 @@ const POSE_BIAS_TOL_M: f64 = 0.010;
 /// exposure and the response curve are only jointly identifiable (seed 101's vignetting 0.200
 /// next to a gamma of 1.49 came out 0.239 with gamma 1.519).
 const PAIR_FACTOR: f64 = 2.5;
-/// Effects whose fit changes the mean render (noise and texture-lowpass do not, so they cannot
-/// shrink the photometric gap).
-const SHRINKS: [&str; 7] = [
-    "vignetting",
-    "blur",
-    "gamma",
-    "exposure",
-    "shadows",
-    "distortion",
-    "pose-bias",
-];
-/// An excess over the baseline below this (DN) is inside the baseline's own spread.
-const MIN_EXCESS_DN: f64 = 0.5;
+/// The figure (an index into [`figures`]) each effect's gap is judged by, and the smallest
+/// excess of the gap over its floor (the same campaign measured with the true hidden effects
+/// added) that is judged. Photometric RMS for level, contrast, falloff and blur: 0.5 DN, since
+/// a fitted model can land that far under the floor (exposure seed 101: 0.43 DN, it absorbs
+/// the laser renders' own darkness). Alignment residual for the geometry: 0.02 (vignetting
+/// alone moves it 0.014). Spectrum RMS log ratio for noise: 0.05. Photometric RMS in cast
+/// shadow for shadows: 0.5 DN. `texture-lowpass` adds no detail to renders (see the gap
+/// module's known limits), so it has no figure to shrink.
+fn judged_by(effect: &str) -> Option<(usize, f64)> {
+    match effect {
+        "vignetting" | "gamma" | "exposure" | "blur" => Some((0, 0.5)),
+        "distortion" | "pose-bias" => Some((1, 0.02)),
+        "noise" => Some((2, 0.05)),
+        "shadows" => Some((3, 0.5)),
+        _ => None,
+    }
+}
+
+/// Shrink checks of one case: every figure its hidden effects are judged by must shrink by at
+/// least half of its excess over the floor; violations appended to `bad`.
+fn check_shrink(r: &CaseResult, hidden: &[&str], bad: &mut Vec<String>) {
+    let (before, after, floor) = (
+        figures(&r.gap.metrics_before),
+        figures(&r.gap.metrics_after),
+        figures(&r.floor),
+    );
+    for h in hidden {
+        let Some((k, min_excess)) = judged_by(h) else {
+            continue;
+        };
+        let excess = before[k] - floor[k];
+        let shrink = before[k] - after[k];
+        if excess > min_excess && shrink < 0.5 * excess {
+            bad.push(format!(
+                "{h}: {} {:.3}→{:.3} shrank by {shrink:.3}, under half its excess {excess:.3} over the floor {:.3}",
+                FIGURES[k], before[k], after[k], floor[k]
+            ));
+        }
+    }
+}
 
 fn rel(fitted: f64, truth: f64) -> f64 {
     (fitted - truth).abs() / truth.abs().max(1e-9)
@@ -162,7 +190,6 @@ fn check_params(r: &CaseResult, truth: &Effect, bad: &mut Vec<String>) {
 #[test]
 fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
     let root = tempfile::tempdir().unwrap();
-    let mut baseline = BTreeMap::new();
     let mut bad = Vec::new();
     let mut matrix = Confusion::default();
     let mut lines = Vec::new();
@@ -178,19 +205,7 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
             for t in &r.truth {
                 check_params(&r, t, &mut case_bad);
             }
-            if hidden.is_empty() {
-                baseline.insert(seed, r.gap.gap_before);
-            } else if hidden.iter().any(|h| SHRINKS.contains(h)) {
-                let base = baseline[&seed];
-                let excess = r.gap.gap_before - base;
-                let shrink = r.gap.gap_before - r.gap.gap_after;
-                if excess > MIN_EXCESS_DN && shrink < 0.5 * excess {
-                    case_bad.push(format!(
-                        "gap {:.2}→{:.2} DN shrank by {shrink:.2}, under half its excess {excess:.2} over the baseline {base:.2}",
-                        r.gap.gap_before, r.gap.gap_after
-                    ));
-                }
-            }
+            check_shrink(&r, &hidden, &mut case_bad);
             bad.extend(
                 case_bad
                     .into_iter()

@@ -91,12 +91,14 @@ pub fn run(
         }
         let (b, a) = (&result.metrics_before, &result.metrics_after);
         say!(
-            "  gap ({}): {:.2} -> {:.2} DN; geometric alignment residual {:.3} -> {:.3}",
+            "  gap ({}): {:.2} -> {:.2} DN; geometric alignment residual {:.3} -> {:.3}; in cast shadow {:.2} -> {:.2} DN",
             result.gap_metric,
             result.gap_before,
             result.gap_after,
             b.alignment_residual,
-            a.alignment_residual
+            a.alignment_residual,
+            b.shadow_rms_dn,
+            a.shadow_rms_dn
         );
         if let Some(t) = &result.texture {
             say!(

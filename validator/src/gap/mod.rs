@@ -4,8 +4,10 @@
 //! The workflow, per terrain entry, over every (capture, camera) view of the release:
 //! 1. **Measure** ([`measure`]) with the entry's current sensor model: the photometric residual
 //!    of the real frames' mean against the expected render (overall, by image radius, by
-//!    intensity), the radial power-spectrum log-ratio, the noise variance by intensity (from the
-//!    repeat frames), and the residual of the dense geometric alignment.
+//!    intensity, and in cast shadow of the campaign light), the radial power-spectrum log-ratio,
+//!    the noise variance by intensity (from the repeat frames), and the residual of the dense
+//!    geometric alignment. [`measure_model`] takes the same figures for any model: on a
+//!    synthetic campaign, the model with the true hidden effects gives the floor a fit can reach.
 //! 2. **Attribute**, in the order that keeps effects from masquerading as each other: geometry
 //!    first ([`geometry`]: `distortion`, `pose-bias` jointly, by dense alignment), then `blur`
 //!    from the width of the skyline edges ([`blur`]: a pixel fit would mistake the render's own
@@ -280,6 +282,33 @@ impl<'a> Ctx<'a> {
             n_folds,
             supersample: supersample.max(1),
         })
+    }
+
+    /// Per view, the pixels in cast shadow of the campaign light (as [`shadows::shadow_pixels`])
+    /// when the scene is seen through `model`'s geometry: where [`Metrics::shadow_rms_dn`] is
+    /// measured.
+    fn shadow_pixels(&self, model: &SensorModel) -> Vec<Vec<bool>> {
+        let mut lit = model.clone();
+        lit.effects.retain(|e| e.name() != "shadows");
+        let mut shadowed = lit.clone();
+        shadowed.effects.push(Effect::Shadows {
+            azimuth_deg: self.light.azimuth_deg,
+            elevation_deg: self.light.elevation_deg,
+        });
+        let (lit, shadowed) = (
+            self.predict_sampled(&lit, 1),
+            self.predict_sampled(&shadowed, 1),
+        );
+        self.views
+            .iter()
+            .zip(lit.iter().zip(&shadowed))
+            .map(|(v, (l, s))| shadows::shadow_pixels(&l.dn, &s.dn, &l.mask, v.width, v.height))
+            .collect()
+    }
+
+    /// Measures `preds` (made with `model`) against the real views.
+    fn measure(&self, preds: &[Prediction], model: &SensorModel, shadow: &[Vec<bool>]) -> Metrics {
+        measure::measure(&self.views, preds, model, shadow)
     }
 
     fn predict_all(&self, model: &SensorModel) -> Vec<Prediction> {
@@ -1102,13 +1131,35 @@ pub fn texture_figures(
     ))
 }
 
+/// Measures the disagreement of `entry`'s renders made with `model` against the real captures,
+/// as [`run`] does before and after. With a model holding the true hidden effects of a
+/// synthetic campaign this is the floor the workflow can reach: the gap left when nothing is
+/// missing but what no sensor model can add (texture, laser noise). The shadow figures are
+/// taken on the pixels where the campaign light casts shadows seen through `reference` (the
+/// run's [`GapResult::model_before`], to compare with its figures).
+pub fn measure_model(
+    view: &ReleaseView,
+    entry: &str,
+    model: &SensorModel,
+    reference: &SensorModel,
+    opts: &GapOptions,
+) -> Result<Metrics, ReaderError> {
+    let geometry_data = entry_geometry(view, entry)?;
+    let ctx = Ctx::load(view, &geometry_data, &opts.captures, opts.supersample)?;
+    let shadow = ctx.shadow_pixels(reference);
+    Ok(ctx.measure(&ctx.predict_all(model), model, &shadow))
+}
+
 /// Runs the gap workflow on `entry` (see the module docs).
 pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResult, ReaderError> {
     let geometry_data = entry_geometry(view, entry)?;
     let ctx = Ctx::load(view, &geometry_data, &opts.captures, opts.supersample)?;
     let model_before = stored_model(view, entry)?;
     let preds_before = ctx.predict_all(&model_before);
-    let metrics_before = measure::measure(&ctx.views, &preds_before, &model_before);
+    // Where the campaign light casts shadows, seen through the stored geometry: the same
+    // pixels before and after, so the two shadow figures compare like with like.
+    let shadow = ctx.shadow_pixels(&model_before);
+    let metrics_before = ctx.measure(&preds_before, &model_before, &shadow);
     let mut model = model_before.clone();
     let mut found = Vec::new();
     let mut candidates = BTreeMap::new();
@@ -1125,7 +1176,7 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
     let texture = texture_stage(&ctx, &geometry_data, &mut model, &mut found);
     noise_stage(&ctx, &preds_before, &mut model, &mut found);
     let preds_after = ctx.predict_all(&model);
-    let metrics_after = measure::measure(&ctx.views, &preds_after, &model);
+    let metrics_after = ctx.measure(&preds_after, &model, &shadow);
     let masked = |p: &Prediction| -> Vec<f32> {
         p.dn.iter()
             .zip(&p.mask)

@@ -49,6 +49,21 @@ pub struct ShadowEvidence {
     pub per_fold: Vec<f64>,
 }
 
+/// The shadow pixels of one view: terrain the shadowed prediction draws at least 20 % darker
+/// than the lit one, eroded by 2 px.
+pub fn shadow_pixels(
+    lit: &[f32],
+    shadowed: &[f32],
+    mask: &[bool],
+    w: usize,
+    h: usize,
+) -> Vec<bool> {
+    let shadow: Vec<bool> = (0..w * h)
+        .map(|i| mask[i] && shadowed[i] < 0.8 * lit[i])
+        .collect();
+    erode(&shadow, w, h, 2)
+}
+
 /// Compares the lit and shadowed predictions on the shadow pixels.
 pub fn evidence(views: &[ShadowView<'_>]) -> ShadowEvidence {
     let folds = views.iter().map(|v| v.fold + 1).max().unwrap_or(0);
@@ -56,10 +71,7 @@ pub fn evidence(views: &[ShadowView<'_>]) -> ShadowEvidence {
     let mut sh = vec![0.0f64; folds];
     let mut n = 0usize;
     for v in views {
-        let shadow: Vec<bool> = (0..v.w * v.h)
-            .map(|i| v.mask[i] && v.shadowed[i] < 0.8 * v.lit[i])
-            .collect();
-        let core = erode(&shadow, v.w, v.h, 2);
+        let core = shadow_pixels(v.lit, v.shadowed, v.mask, v.w, v.h);
         for i in (0..v.w * v.h).filter(|&i| core[i]) {
             let r = f64::from(v.real[i]);
             lit[v.fold] += (r - f64::from(v.lit[i])).powi(2);

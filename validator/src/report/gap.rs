@@ -144,6 +144,13 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
         &[
             row("photometric RMS, DN (headline)", &|m| m.photometric_rms_dn),
             row("geometric alignment residual", &|m| m.alignment_residual),
+            row(
+                &format!(
+                    "photometric RMS in cast shadow of the light, DN ({} px)",
+                    b.shadow_pixels
+                ),
+                &|m| m.shadow_rms_dn,
+            ),
             row("noise variance of the real frames, DN²", &|m| {
                 m.noise_variance_dn2
             }),
