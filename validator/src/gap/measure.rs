@@ -5,11 +5,12 @@
 //! (vignetting, distortion), by predicted intensity (exposure, response curve); the radial
 //! power-spectrum log-ratio render/real (blur, noise, missing texture detail) with the render
 //! carrying the model's noise; the photometric RMS over the pixels in cast shadow of the
-//! campaign light (occlusion by the light); and the geometric misalignment (pose, distortion) as the residual
-//! of the dense alignment of [`geometry`] at zero increment (normalised band-pass units: 0 for
-//! a perfect alignment, about 2 for unrelated images). The headline gap is the photometric RMS with the noise
-//! of the frame mean removed (`photometric_rms_dn`), because noise is the one disagreement no
-//! deterministic render can remove pixel by pixel; it has its own figures.
+//! campaign light (occlusion by the light); and the geometric misalignment (pose, distortion)
+//! as the residual of the dense alignment of [`geometry`] at zero increment (normalised
+//! band-pass units: 0 for a perfect alignment, about 2 for unrelated images). The headline gap
+//! is the photometric RMS with the noise of the frame mean removed (`photometric_rms_dn`),
+//! because noise is the one disagreement no deterministic render can remove pixel by pixel; it
+//! has its own figures.
 
 use serde::Serialize;
 

@@ -650,8 +650,8 @@ const SIGNIFICANCE: f64 = 2.0;
 /// Smallest vignetting strength named: half the catalogue's lower bound (0.1, the falloff a
 /// camera visibly has). A smaller fitted falloff is within a laser render's own radial level
 /// error, however significant: estec seed 2 with a hidden distortion and no vignetting named
-/// 0.031 ± 0.012 (7.8 DN² held out). Hidden strengths of 0.1–0.5 come out at 0.15 and above on
-/// mini (six captures, seed 103: 0.149 for 0.173).
+/// 0.031 ± 0.012 (7.8 DN² held out). The hidden strengths drawn on mini so far (0.17–0.23) came
+/// out at 0.149 and above (six captures, seed 103: 0.149 for 0.173).
 const VIGNETTING_MIN_STRENGTH: f64 = 0.05;
 
 /// Stage 2: photometry (+ shadows). Updates `model`.
