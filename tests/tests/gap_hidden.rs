@@ -26,8 +26,9 @@ const SEEDS: [u64; 2] = [101, 102];
 const GAMMA_TOL: f64 = 0.02;
 /// PSF σ, px.
 const BLUR_TOL_PX: f64 = 0.15;
-/// Vignetting strength, relative.
-const VIGNETTING_TOL: f64 = 0.10;
+/// Vignetting strength, relative: the workflow's target, alone and next to another effect (the
+/// stereo views' overlap pins the falloff, see the gap module's `overlap`).
+const VIGNETTING_TOL: f64 = 0.05;
 /// Noise gain and read noise, relative (from two repeat frames per pose).
 const NOISE_TOL: f64 = 0.15;
 /// Exposure gain, relative (the offset trades against it and against the response curve).
@@ -44,9 +45,9 @@ const TEXTURE_TOL: f64 = 0.25;
 /// with 9 mm of z); the displacement they make together at the terrain is what the images
 /// determine, here to 8.8 mm.
 const POSE_BIAS_TOL_M: f64 = 0.010;
-/// Tolerances of an effect hidden next to another are this many times wider: vignetting,
-/// exposure and the response curve are only jointly identifiable (seed 101's vignetting 0.200
-/// next to a gamma of 1.49 came out 0.239 with gamma 1.519).
+/// Tolerances of an effect hidden next to another are this many times wider (except
+/// vignetting's): exposure and the response curve are only jointly identifiable with the
+/// level and falloff fitted next to them.
 const PAIR_FACTOR: f64 = 2.5;
 /// The figure (an index into [`figures`]) each effect's gap is judged by, and the smallest
 /// excess of the gap over its floor (the same campaign measured with the true hidden effects
@@ -132,7 +133,7 @@ fn check_params(r: &CaseResult, truth: &Effect, bad: &mut Vec<String>) {
         ),
         "vignetting" => check(
             "strength",
-            rel(f["strength"], t["strength"]) <= widen * VIGNETTING_TOL,
+            rel(f["strength"], t["strength"]) <= VIGNETTING_TOL,
             format!("{:.4} for {:.4}", f["strength"], t["strength"]),
         ),
         "noise" => {

@@ -192,7 +192,7 @@ pub fn effects_of(p: &[f64; 8]) -> (Effect, Effect) {
     )
 }
 
-fn bilinear(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<f64> {
+pub(super) fn bilinear(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<f64> {
     if !(u >= 0.0 && v >= 0.0 && u <= (w - 1) as f64 && v <= (h - 1) as f64) {
         return None;
     }

@@ -20,14 +20,32 @@
 
 use crate::sensor::{gaussian_blur, Effect};
 
+use regolith_format::camera_model::CameraModel;
+
 use super::lsq::{solve, Problem};
+use super::overlap::Pair;
 use super::views::{GapView, Prediction};
 
 /// Sample grid stride, pixels.
-const STRIDE: usize = 6;
+pub(super) const STRIDE: usize = 6;
 /// Analysis low-pass applied to both images, px (see the module docs).
-const ANALYSIS_SIGMA: f64 = 8.0;
-const ERODE: usize = 16;
+pub(super) const ANALYSIS_SIGMA: f64 = 8.0;
+/// Erosion of the render's terrain mask, px.
+pub(super) const ERODE: usize = 16;
+
+/// The squared distance from the principal point to the farthest image corner: the unit of
+/// the normalised squared radius `rho2`.
+pub(super) fn rho2_scale(cam: &CameraModel, w: usize, h: usize) -> f64 {
+    [
+        (0.0, 0.0),
+        ((w - 1) as f64, 0.0),
+        (0.0, (h - 1) as f64),
+        ((w - 1) as f64, (h - 1) as f64),
+    ]
+    .iter()
+    .map(|(x, y)| (x - cam.cx).powi(2) + (y - cam.cy).powi(2))
+    .fold(1e-9f64, f64::max)
+}
 
 /// The photometric samples of several views.
 #[derive(Debug, Clone, Default)]
@@ -65,15 +83,7 @@ impl Samples {
         );
         let eroded = erode(&p.mask, w, h, ERODE);
         let cam = &v.camera_model;
-        let corner2 = [
-            (0.0, 0.0),
-            ((w - 1) as f64, 0.0),
-            (0.0, (h - 1) as f64),
-            ((w - 1) as f64, (h - 1) as f64),
-        ]
-        .iter()
-        .map(|(x, y)| (x - cam.cx).powi(2) + (y - cam.cy).powi(2))
-        .fold(1e-9f64, f64::max);
+        let corner2 = rho2_scale(cam, w, h);
         for y in (0..h).step_by(STRIDE) {
             for x in (0..w).step_by(STRIDE) {
                 let i = y * w + x;
@@ -182,10 +192,15 @@ pub struct PhotometricFit {
 /// Radiance that the model at full parameters `p` maps to sample `i`'s real DN (the inverse of
 /// [`predict`]).
 pub fn invert(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
+    invert_dn(s.real[i], s.rho2[i], p)
+}
+
+/// Radiance that the model at `p` maps to `dn` at normalised squared radius `rho2`.
+fn invert_dn(dn: f64, rho2: f64, p: &[f64; 4]) -> f64 {
     let strength = p[2].clamp(0.0, 0.999_999);
     let c = (1.0 - strength).powf(-0.5) - 1.0;
-    let v = 1.0 / (1.0 + c * s.rho2[i]).powi(2);
-    let y = (s.real[i] / 255.0).max(0.0);
+    let v = 1.0 / (1.0 + c * rho2).powi(2);
+    let y = (dn / 255.0).max(0.0);
     let e = if (p[3] - 1.0).abs() < 1e-12 {
         y
     } else {
@@ -201,9 +216,15 @@ pub fn fit(
     effects: &[&str],
     use_fold: &(dyn Fn(usize) -> bool + Sync),
 ) -> PhotometricFit {
-    fit_by(s, effects, use_fold, &|s, i, p| {
-        predict(s, i, p) - s.real[i]
-    })
+    fit_by(s, effects, use_fold, &dn_error, None)
+}
+
+fn dn_error(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
+    predict(s, i, p) - s.real[i]
+}
+
+fn radiance_error(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
+    invert(s, i, p) - s.radiance[i]
 }
 
 /// [`fit`] by the error of the radiance the real DN maps back to: the parameters' estimate.
@@ -217,9 +238,64 @@ pub fn fit_radiance(
     effects: &[&str],
     use_fold: &(dyn Fn(usize) -> bool + Sync),
 ) -> PhotometricFit {
-    fit_by(s, effects, use_fold, &|s, i, p| {
-        invert(s, i, p) - s.radiance[i]
-    })
+    fit_by(s, effects, use_fold, &radiance_error, None)
+}
+
+/// Log ratio of the radiances the two views' real DN invert to at `p` (0 for the true model).
+fn pair_error(q: &Pair, p: &[f64; 4]) -> f64 {
+    let lo = 1e-6;
+    invert_dn(q.real[0], q.rho2[0], p).max(lo).ln()
+        - invert_dn(q.real[1], q.rho2[1], p).max(lo).ln()
+}
+
+/// Fewest overlap pairs for which they enter a fit.
+pub const MIN_PAIRS: usize = 200;
+
+/// [`fit`] (or [`fit_radiance`], `by_radiance`) with the overlap `pairs` as a second set of
+/// residuals when `effects` contains a vignetting (see [`super::overlap`]). Each set is
+/// weighted by the inverse of its RMS residual at the samples-only fit, so that neither
+/// dominates by its units or its count.
+pub fn refit_with_overlap(
+    s: &Samples,
+    pairs: &[Pair],
+    effects: &[&str],
+    use_fold: &(dyn Fn(usize) -> bool + Sync),
+    by_radiance: bool,
+) -> PhotometricFit {
+    let residual: &Residual = if by_radiance {
+        &radiance_error
+    } else {
+        &dn_error
+    };
+    let first = fit_by(s, effects, use_fold, residual, None);
+    let used: Vec<Pair> = pairs
+        .iter()
+        .filter(|q| use_fold(q.folds[0]) && use_fold(q.folds[1]))
+        .copied()
+        .collect();
+    if !effects.contains(&"vignetting") || used.len() < MIN_PAIRS {
+        return first;
+    }
+    let rms_pairs = (used
+        .iter()
+        .map(|q| pair_error(q, &first.params).powi(2))
+        .sum::<f64>()
+        / used.len() as f64)
+        .sqrt();
+    if !(rms_pairs > 0.0 && first.mse > 0.0) {
+        return first;
+    }
+    let weight = first.mse.sqrt() / rms_pairs;
+    let second = fit_by(s, effects, use_fold, residual, Some((&used, weight)));
+    let (mut sum, mut n) = (0.0, 0usize);
+    for i in (0..s.len()).filter(|&i| use_fold(s.fold[i])) {
+        sum += residual(s, i, &second.params).powi(2);
+        n += 1;
+    }
+    PhotometricFit {
+        mse: if n == 0 { 0.0 } else { sum / n as f64 },
+        ..second
+    }
 }
 
 type Residual = dyn Fn(&Samples, usize, &[f64; 4]) -> f64 + Sync;
@@ -229,6 +305,7 @@ fn fit_by(
     effects: &[&str],
     use_fold: &(dyn Fn(usize) -> bool + Sync),
     residual: &Residual,
+    overlap: Option<(&[Pair], f64)>,
 ) -> PhotometricFit {
     let idx = free(effects);
     let rows: Vec<usize> = (0..s.len()).filter(|&i| use_fold(s.fold[i])).collect();
@@ -243,6 +320,9 @@ fn fit_by(
         let p = expand(q);
         out.clear();
         out.extend(rows.iter().map(|&i| residual(s, i, &p)));
+        if let Some((pairs, weight)) = overlap {
+            out.extend(pairs.iter().map(|q| weight * pair_error(q, &p)));
+        }
     };
     let sol = solve(
         &Problem {
@@ -276,5 +356,63 @@ pub fn mse(s: &Samples, p: &[f64; 4], use_fold: &dyn Fn(usize) -> bool) -> f64 {
         0.0
     } else {
         sum / n as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A terrain whose entry is too bright towards the image's edge (the far terrain), with
+    /// texture errors of its own: the samples alone take part of the falloff for the entry's
+    /// error, the overlap does not.
+    #[test]
+    fn overlap_pairs_remove_a_radial_error_of_the_entry() {
+        let truth = [0.9, 0.0, 0.3, 1.0];
+        let radiance = |k: usize| 0.3 + 0.4 * ((k as f64 * 0.37).sin() * 0.5 + 0.5);
+        let dn = |rad: f64, rho2: f64| {
+            let s = Samples {
+                fold: vec![0],
+                real: vec![0.0],
+                radiance: vec![rad],
+                rho2: vec![rho2],
+            };
+            predict(&s, 0, &truth)
+        };
+        let mut s = Samples::default();
+        let mut pairs = Vec::new();
+        for k in 0..2000 {
+            let rho2 = (k % 100) as f64 / 100.0;
+            let rad = radiance(k);
+            s.fold.push(k % 2);
+            s.real.push(dn(rad, rho2));
+            // The entry's radiance error grows with the radius; its texture is ±20 % off.
+            let texture = 0.2 * (k as f64 * 2.71).sin();
+            s.radiance.push(rad * (1.0 + 0.15 * rho2) * (1.0 + texture));
+            s.rho2.push(rho2);
+            let other = ((k * 7) % 100) as f64 / 100.0;
+            pairs.push(Pair {
+                folds: [k % 2, (k + 1) % 2],
+                real: [dn(rad, rho2), dn(rad, other)],
+                rho2: [rho2, other],
+            });
+        }
+        let set = ["gain", "vignetting"];
+        let alone = fit(&s, &set, &|_| true);
+        let both = refit_with_overlap(&s, &pairs, &set, &|_| true, false);
+        assert!(
+            (alone.params[2] - truth[2]).abs() > 0.05,
+            "samples alone: {:?}",
+            alone.params
+        );
+        assert!(
+            (both.params[2] - truth[2]).abs() < 0.2 * (alone.params[2] - truth[2]).abs(),
+            "with overlap: {:?} (alone {:?})",
+            both.params,
+            alone.params
+        );
+        // Too few pairs: the samples-only fit.
+        let few = refit_with_overlap(&s, &pairs[..MIN_PAIRS - 1], &set, &|_| true, false);
+        assert_eq!(few, alone);
     }
 }

@@ -1,0 +1,140 @@
+//! The vignetting estimate's second witness: the same terrain point seen by two views at two
+//! image radii (flat-fielding from overlap, as in Goldman & Chen, "Vignette and exposure
+//! calibration and compensation", ICCV 2005).
+//!
+//! The photometric fit compares real images with renders of the entry, so any error of the
+//! entry's radiance that varies over the image is taken for an effect. On a terrain it does
+//! vary with the image radius: the far terrain fills the top of the image, the near terrain
+//! the bottom, and a laser entry's shading and reflectance are wrong by a range-dependent
+//! amount (mini seed 103: a vignetting of 0.173 came out 0.133). A point of a Lambertian
+//! terrain under a fixed light has one radiance whoever looks at it, so the radiance two views'
+//! real DN invert to must agree there, whatever the entry gets wrong: the log ratio of the two
+//! inverted radiances depends only on the response curve, the offset and the falloff at the
+//! two radii. Those pairs enter the final fit next to the render's samples
+//! ([`super::photometry::refit_with_overlap`]); the render's samples still fix the gain and the
+//! response curve (vignetting and the response are only identifiable together from overlap).
+//!
+//! Correspondences come from the render's depth: a sample of view A is unprojected through
+//! A's render camera, moved to view B and kept if B's render sees the same surface there
+//! (depth within [`DEPTH_TOLERANCE`]) inside B's eroded terrain mask. Only views of one capture
+//! are paired (the stereo head's two cameras): they see the terrain at the same instant, under
+//! the same light and exposure, and their relative pose is the calibrated stereo extrinsic
+//! rather than two capture poses with their own errors. Pairs across captures pulled the
+//! estimate away from the truth (mini seed 103, hidden 0.173: pairs within captures alone
+//! gave 0.175, all pairs 0.125).
+
+use regolith_format::frames::Pose;
+
+use super::geometry::bilinear;
+use super::photometry::{erode, rho2_scale, ANALYSIS_SIGMA, ERODE, STRIDE};
+use super::views::{GapView, Prediction};
+use crate::sensor::gaussian_blur;
+
+/// Relative depth difference up to which a point is taken to be visible in the other view.
+pub const DEPTH_TOLERANCE: f64 = 0.02;
+
+/// One terrain point seen by two views.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pair {
+    /// Folds (captures) of the two views.
+    pub folds: [usize; 2],
+    /// Real mean DN (low-passed like the photometric samples) in each view.
+    pub real: [f64; 2],
+    /// Normalised squared image radius in each view (as [`super::photometry::Samples::rho2`]).
+    pub rho2: [f64; 2],
+}
+
+struct Prepared<'a> {
+    real: Vec<f32>,
+    eroded: Vec<bool>,
+    pred: &'a Prediction,
+    pose: Pose,
+    camera_from_ground: Pose,
+    scale: f64,
+    cx: f64,
+    cy: f64,
+    w: usize,
+    h: usize,
+}
+
+/// The pairs of every two views of one capture (fold). `poses` are the `ground_from_camera`
+/// the renders used.
+pub fn pairs(
+    views: &[GapView],
+    preds: &[Prediction],
+    folds: &[usize],
+    poses: &[Pose],
+) -> Vec<Pair> {
+    let prepared: Vec<Prepared<'_>> = views
+        .iter()
+        .zip(preds)
+        .zip(poses)
+        .map(|((v, p), pose)| {
+            let (w, h) = (v.width, v.height);
+            Prepared {
+                real: gaussian_blur(&v.mean(), w, h, ANALYSIS_SIGMA),
+                eroded: erode(&p.mask, w, h, ERODE),
+                pred: p,
+                pose: *pose,
+                camera_from_ground: pose.inverse(),
+                scale: rho2_scale(&v.camera_model, w, h),
+                cx: v.camera_model.cx,
+                cy: v.camera_model.cy,
+                w,
+                h,
+            }
+        })
+        .collect();
+    let usable = |r: f64| (2.0..=253.0).contains(&r);
+    let mut out = Vec::new();
+    for (a, va) in prepared.iter().enumerate() {
+        for y in (0..va.h).step_by(STRIDE) {
+            for x in (0..va.w).step_by(STRIDE) {
+                let i = y * va.w + x;
+                let z = f64::from(va.pred.depth[i]);
+                let ra = f64::from(va.real[i]);
+                if !va.eroded[i] || !z.is_finite() || z <= 0.0 || !usable(ra) {
+                    continue;
+                }
+                let (xn, yn) = va.pred.camera.unproject(x as f64, y as f64);
+                let ground = va.pose.transform_point([xn * z, yn * z, z]);
+                let rho2_a = ((x as f64 - va.cx).powi(2) + (y as f64 - va.cy).powi(2)) / va.scale;
+                for (b, vb) in prepared
+                    .iter()
+                    .enumerate()
+                    .skip(a + 1)
+                    .filter(|(b, _)| folds[*b] == folds[a])
+                {
+                    let pc = vb.camera_from_ground.transform_point(ground);
+                    let Some([u, v]) = vb.pred.camera.project(pc) else {
+                        continue;
+                    };
+                    let (xb, yb) = (u.round(), v.round());
+                    if !(xb >= 0.0 && yb >= 0.0 && xb < vb.w as f64 && yb < vb.h as f64) {
+                        continue;
+                    }
+                    let j = yb as usize * vb.w + xb as usize;
+                    let zb = f64::from(vb.pred.depth[j]);
+                    // A NaN or infinite depth (no surface) compares false: not visible.
+                    let visible = (zb - pc[2]).abs() <= DEPTH_TOLERANCE * pc[2];
+                    if !vb.eroded[j] || !visible {
+                        continue;
+                    }
+                    let Some(rb) = bilinear(&vb.real, vb.w, vb.h, u, v).filter(|r| usable(*r))
+                    else {
+                        continue;
+                    };
+                    out.push(Pair {
+                        folds: [folds[a], folds[b]],
+                        real: [ra, rb],
+                        rho2: [
+                            rho2_a,
+                            ((u - vb.cx).powi(2) + (v - vb.cy).powi(2)) / vb.scale,
+                        ],
+                    });
+                }
+            }
+        }
+    }
+    out
+}
