@@ -36,8 +36,8 @@ pub const DEPTH_TOLERANCE: f64 = 0.02;
 /// One terrain point seen by two views.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pair {
-    /// Folds (captures) of the two views.
-    pub folds: [usize; 2],
+    /// Fold (capture) of the two views.
+    pub fold: usize,
     /// Real mean DN (low-passed like the photometric samples) in each view.
     pub real: [f64; 2],
     /// Normalised squared image radius in each view (as [`super::photometry::Samples::rho2`]).
@@ -99,12 +99,8 @@ pub fn pairs(
                 let (xn, yn) = va.pred.camera.unproject(x as f64, y as f64);
                 let ground = va.pose.transform_point([xn * z, yn * z, z]);
                 let rho2_a = ((x as f64 - va.cx).powi(2) + (y as f64 - va.cy).powi(2)) / va.scale;
-                for (b, vb) in prepared
-                    .iter()
-                    .enumerate()
-                    .skip(a + 1)
-                    .filter(|(b, _)| folds[*b] == folds[a])
-                {
+                let others = prepared.iter().zip(folds).skip(a + 1);
+                for (vb, _) in others.filter(|(_, f)| **f == folds[a]) {
                     let pc = vb.camera_from_ground.transform_point(ground);
                     let Some([u, v]) = vb.pred.camera.project(pc) else {
                         continue;
@@ -125,7 +121,7 @@ pub fn pairs(
                         continue;
                     };
                     out.push(Pair {
-                        folds: [folds[a], folds[b]],
+                        fold: folds[a],
                         real: [ra, rb],
                         rho2: [
                             rho2_a,

@@ -254,7 +254,7 @@ pub const MIN_PAIRS: usize = 200;
 /// [`fit`] (or [`fit_radiance`], `by_radiance`) with the overlap `pairs` as a second set of
 /// residuals when `effects` contains a vignetting (see [`super::overlap`]). Each set is
 /// weighted by the inverse of its RMS residual at the samples-only fit, so that neither
-/// dominates by its units or its count.
+/// dominates by its units.
 pub fn refit_with_overlap(
     s: &Samples,
     pairs: &[Pair],
@@ -268,11 +268,7 @@ pub fn refit_with_overlap(
         &dn_error
     };
     let first = fit_by(s, effects, use_fold, residual, None);
-    let used: Vec<Pair> = pairs
-        .iter()
-        .filter(|q| use_fold(q.folds[0]) && use_fold(q.folds[1]))
-        .copied()
-        .collect();
+    let used: Vec<Pair> = pairs.iter().filter(|q| use_fold(q.fold)).copied().collect();
     if !effects.contains(&"vignetting") || used.len() < MIN_PAIRS {
         return first;
     }
@@ -392,7 +388,7 @@ mod tests {
             s.rho2.push(rho2);
             let other = ((k * 7) % 100) as f64 / 100.0;
             pairs.push(Pair {
-                folds: [k % 2, (k + 1) % 2],
+                fold: k % 2,
                 real: [dn(rad, rho2), dn(rad, other)],
                 rho2: [rho2, other],
             });
