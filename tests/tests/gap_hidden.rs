@@ -34,17 +34,19 @@ const NOISE_TOL: f64 = 0.15;
 /// Exposure gain, relative (the offset trades against it and against the response curve).
 const EXPOSURE_GAIN_TOL: f64 = 0.10;
 /// Radial displacement of the distortion at 0.7 of the radius, relative: the displacement is
-/// what the images determine; dk1 and dk2 trade off over the terrain's part of the image.
+/// what the images determine; dk1 and dk2 trade off over the terrain's part of the image, and
+/// one radial term is fitted unless held-out data ask for two (seeds 101, 102: −12.5 and
+/// −11 %; seed 103, with a hidden dk2 of −0.013 taken into dk1, +35 %).
 const DISTORTION_SHIFT_TOL: f64 = 0.35;
 /// Shadows' light direction, degrees.
 const SHADOWS_TOL_DEG: f64 = 3.0;
 /// Hidden texture low-pass σ, relative.
 const TEXTURE_TOL: f64 = 0.25;
 /// Pose bias: displacement of a point 1.5 m ahead of the camera (the terrain's distance),
-/// metres. Rotation and translation trade off on mini (seed 102: rotation x 0.34° for 0.03°
-/// with 9 mm of z); the displacement they make together at the terrain is what the images
-/// determine, here to 8.8 mm.
-const POSE_BIAS_TOL_M: f64 = 0.010;
+/// metres. Rotation and translation trade off on mini (seed 102: rotation x 0.40° for 0.03°
+/// with 12 mm of y); the displacement they make together at the terrain is what the images
+/// determine, here to 4.5 and 5.6 mm (5.7 next to a vignetting).
+const POSE_BIAS_TOL_M: f64 = 0.007;
 /// Tolerances of an effect hidden next to another are this many times wider (except
 /// vignetting's): exposure and the response curve are only jointly identifiable with the
 /// level and falloff fitted next to them.

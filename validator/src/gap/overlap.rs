@@ -26,9 +26,8 @@
 use regolith_format::frames::Pose;
 
 use super::geometry::bilinear;
-use super::photometry::{erode, rho2_scale, ANALYSIS_SIGMA, ERODE, STRIDE};
+use super::photometry::{rho2_scale, usable, Analysis, STRIDE};
 use super::views::{GapView, Prediction};
-use crate::sensor::gaussian_blur;
 
 /// Relative depth difference up to which a point is taken to be visible in the other view.
 pub const DEPTH_TOLERANCE: f64 = 0.02;
@@ -45,8 +44,7 @@ pub struct Pair {
 }
 
 struct Prepared<'a> {
-    real: Vec<f32>,
-    eroded: Vec<bool>,
+    analysis: &'a Analysis,
     pred: &'a Prediction,
     pose: Pose,
     camera_from_ground: Pose,
@@ -57,23 +55,24 @@ struct Prepared<'a> {
     h: usize,
 }
 
-/// The pairs of every two views of one capture (fold). `poses` are the `ground_from_camera`
-/// the renders used.
+/// The pairs of every two views of one capture (fold). `analyses` are the views'
+/// [`Analysis`] images with `preds`; `poses` are the `ground_from_camera` the renders used.
 pub fn pairs(
     views: &[GapView],
     preds: &[Prediction],
+    analyses: &[Analysis],
     folds: &[usize],
     poses: &[Pose],
 ) -> Vec<Pair> {
     let prepared: Vec<Prepared<'_>> = views
         .iter()
         .zip(preds)
+        .zip(analyses)
         .zip(poses)
-        .map(|((v, p), pose)| {
+        .map(|(((v, p), analysis), pose)| {
             let (w, h) = (v.width, v.height);
             Prepared {
-                real: gaussian_blur(&v.mean(), w, h, ANALYSIS_SIGMA),
-                eroded: erode(&p.mask, w, h, ERODE),
+                analysis,
                 pred: p,
                 pose: *pose,
                 camera_from_ground: pose.inverse(),
@@ -85,15 +84,14 @@ pub fn pairs(
             }
         })
         .collect();
-    let usable = |r: f64| (2.0..=253.0).contains(&r);
     let mut out = Vec::new();
     for (a, va) in prepared.iter().enumerate() {
         for y in (0..va.h).step_by(STRIDE) {
             for x in (0..va.w).step_by(STRIDE) {
                 let i = y * va.w + x;
                 let z = f64::from(va.pred.depth[i]);
-                let ra = f64::from(va.real[i]);
-                if !va.eroded[i] || !z.is_finite() || z <= 0.0 || !usable(ra) {
+                let ra = f64::from(va.analysis.real[i]);
+                if !va.analysis.eroded[i] || !z.is_finite() || z <= 0.0 || !usable(ra) {
                     continue;
                 }
                 let (xn, yn) = va.pred.camera.unproject(x as f64, y as f64);
@@ -113,10 +111,11 @@ pub fn pairs(
                     let zb = f64::from(vb.pred.depth[j]);
                     // A NaN or infinite depth (no surface) compares false: not visible.
                     let visible = (zb - pc[2]).abs() <= DEPTH_TOLERANCE * pc[2];
-                    if !vb.eroded[j] || !visible {
+                    if !vb.analysis.eroded[j] || !visible {
                         continue;
                     }
-                    let Some(rb) = bilinear(&vb.real, vb.w, vb.h, u, v).filter(|r| usable(*r))
+                    let Some(rb) =
+                        bilinear(&vb.analysis.real, vb.w, vb.h, u, v).filter(|r| usable(*r))
                     else {
                         continue;
                     };

@@ -47,6 +47,33 @@ pub(super) fn rho2_scale(cam: &CameraModel, w: usize, h: usize) -> f64 {
     .fold(1e-9f64, f64::max)
 }
 
+/// What the photometric analysis takes from one view and its render, made once per view and
+/// shared by the render's samples ([`Samples::add`]) and the overlap pairs
+/// ([`super::overlap::pairs`]).
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    /// The real frame mean, low-passed by [`ANALYSIS_SIGMA`].
+    pub real: Vec<f32>,
+    /// The render's terrain mask eroded by [`ERODE`].
+    pub eroded: Vec<bool>,
+}
+
+impl Analysis {
+    /// The analysis images of view `v` with its render `p`.
+    pub fn new(v: &GapView, p: &Prediction) -> Analysis {
+        let (w, h) = (v.width, v.height);
+        Analysis {
+            real: gaussian_blur(&v.mean(), w, h, ANALYSIS_SIGMA),
+            eroded: erode(&p.mask, w, h, ERODE),
+        }
+    }
+}
+
+/// A low-passed real DN the photometric fits use: clear of the 8-bit floor and ceiling.
+pub(super) fn usable(dn: f64) -> bool {
+    (2.0..=253.0).contains(&dn)
+}
+
 /// The photometric samples of several views.
 #[derive(Debug, Clone, Default)]
 pub struct Samples {
@@ -71,24 +98,23 @@ impl Samples {
         self.real.is_empty()
     }
 
-    /// Appends the samples of one view, its radiance blurred by a Gaussian PSF of `sigma_px`.
-    pub fn add(&mut self, fold: usize, v: &GapView, p: &Prediction, sigma_px: f64) {
+    /// Appends the samples of one view (`a` its [`Analysis`]), its radiance blurred by a
+    /// Gaussian PSF of `sigma_px`.
+    pub fn add(&mut self, fold: usize, v: &GapView, p: &Prediction, a: &Analysis, sigma_px: f64) {
         let (w, h) = (v.width, v.height);
-        let real = gaussian_blur(&v.mean(), w, h, ANALYSIS_SIGMA);
         let blurred = gaussian_blur(
             &p.radiance,
             w,
             h,
             (sigma_px * sigma_px + ANALYSIS_SIGMA * ANALYSIS_SIGMA).sqrt(),
         );
-        let eroded = erode(&p.mask, w, h, ERODE);
         let cam = &v.camera_model;
         let corner2 = rho2_scale(cam, w, h);
         for y in (0..h).step_by(STRIDE) {
             for x in (0..w).step_by(STRIDE) {
                 let i = y * w + x;
-                let r = f64::from(real[i]);
-                if !eroded[i] || !(2.0..=253.0).contains(&r) {
+                let r = f64::from(a.real[i]);
+                if !a.eroded[i] || !usable(r) {
                     continue;
                 }
                 self.fold.push(fold);
