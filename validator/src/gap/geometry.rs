@@ -210,7 +210,7 @@ const STEP: [f64; 8] = [1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 5e-3, 5e-3, 5e-3];
 pub fn free(effects: &[&str], radial_terms: usize) -> Vec<usize> {
     let mut out = Vec::new();
     if effects.contains(&"distortion") {
-        out.extend((0..radial_terms.min(2)).collect::<Vec<_>>());
+        out.extend(0..radial_terms.min(2));
     }
     if effects.contains(&"pose-bias") {
         out.extend(2..8);

@@ -29,9 +29,9 @@ use super::views::{GapView, Prediction};
 /// Sample grid stride, pixels.
 pub(super) const STRIDE: usize = 6;
 /// Analysis low-pass applied to both images, px (see the module docs).
-pub(super) const ANALYSIS_SIGMA: f64 = 8.0;
+pub const ANALYSIS_SIGMA: f64 = 8.0;
 /// Erosion of the render's terrain mask, px.
-pub(super) const ERODE: usize = 16;
+pub const ERODE: usize = 16;
 
 /// The squared distance from the principal point to the farthest image corner: the unit of
 /// the normalised squared radius `rho2`.
