@@ -378,15 +378,14 @@ fn scored(cands: &[Candidate]) -> Vec<ScoredCandidate> {
 
 type Levels = Vec<(Vec<geometry::ViewImages>, Vec<geometry::Observation>)>;
 
-/// The band-pass levels of every view for the geometric fit, from renders with `model`.
-fn geometry_levels(ctx: &Ctx<'_>, model: &SensorModel) -> Levels {
-    let preds = ctx.predict_all(model);
+/// The band-pass levels of every view for the geometric fit, from the renders `preds`.
+fn geometry_levels(ctx: &Ctx<'_>, preds: &[Prediction]) -> Levels {
     geometry::LEVELS
         .iter()
         .map(|band| {
             let mut imgs = Vec::new();
             let mut obs = Vec::new();
-            for (i, (v, p)) in ctx.views.iter().zip(&preds).enumerate() {
+            for (i, (v, p)) in ctx.views.iter().zip(preds).enumerate() {
                 let (img, o) = geometry::prepare(
                     i,
                     ctx.folds[i],
@@ -474,7 +473,8 @@ fn geometry_stage(
     min_share: f64,
     out: &mut Vec<Named>,
 ) -> Vec<ScoredCandidate> {
-    let levels = geometry_levels(ctx, model);
+    let preds = ctx.predict_all(model);
+    let levels = geometry_levels(ctx, &preds);
     let Some((_, fine_obs)) = levels.last() else {
         return Vec::new();
     };
@@ -512,7 +512,8 @@ fn geometry_stage(
     let mut current = with_geometry(model, &set, &f.params);
     let mut std_err_fit = f.std_err;
     if set.contains(&"pose-bias") {
-        let refine = fit_levels(&geometry_levels(ctx, &current), &set, terms, &|_, _| true);
+        let seen = ctx.predict_all(&current);
+        let refine = fit_levels(&geometry_levels(ctx, &seen), &set, terms, &|_, _| true);
         current = with_geometry(&current, &set, &refine.params);
         std_err_fit = refine.std_err;
     }
@@ -548,7 +549,8 @@ fn geometry_stage(
     // 0.046 and raised the photometric RMS in every view (15.34 → 15.60 DN overall); hidden
     // effects lowered it (distortion 16.04 → 15.95, pose-bias 15.43 → 13.92 and 19.51 → 16.31).
     // The RMS is taken after a gain and offset per view (see `photometric_rms_pair`).
-    let (rms_before, rms_after) = photometric_rms_pair(ctx, model, &current);
+    let corrected = ctx.predict_all(&current);
+    let (rms_before, rms_after) = photometric_rms_pair(ctx, &preds, &corrected);
     if rms_after >= rms_before {
         return scored(&cands);
     }
@@ -557,7 +559,7 @@ fn geometry_stage(
     // the samples to where the real band-pass is weaker does not: with a texture low-pass
     // hidden (mini seed 102) a distortion of dk1 −0.064, the same in both captures, lowered the
     // held-out residual by 0.068 and the re-rendered one by 0.004.
-    if alignment_residual(&levels) - alignment_residual(&geometry_levels(ctx, &current))
+    if alignment_residual(&levels) - alignment_residual(&geometry_levels(ctx, &corrected))
         < GEOMETRY_MIN_RERENDERED
     {
         return scored(&cands);
@@ -633,14 +635,13 @@ fn radial_shift(p: &[f64; 8]) -> f64 {
     crate::sensor::distortion_shift(p[0], p[1])
 }
 
-/// Photometric RMS (DN) of the real frame means against the predictions of `a` and of `b`, over
+/// Photometric RMS (DN) of the real frame means against the predictions `pa` and `pb`, over
 /// the pixels both see terrain, each view's prediction first mapped by its least-squares gain
 /// and offset (the photometric effects are fitted after the geometry: a hidden response curve
 /// or exposure must not decide whether a geometric correction helps).
-fn photometric_rms_pair(ctx: &Ctx<'_>, a: &SensorModel, b: &SensorModel) -> (f64, f64) {
-    let (pa, pb) = (ctx.predict_all(a), ctx.predict_all(b));
+fn photometric_rms_pair(ctx: &Ctx<'_>, pa: &[Prediction], pb: &[Prediction]) -> (f64, f64) {
     let (mut sa, mut sb, mut n) = (0.0f64, 0.0f64, 0usize);
-    for ((v, x), y) in ctx.views.iter().zip(&pa).zip(&pb) {
+    for ((v, x), y) in ctx.views.iter().zip(pa).zip(pb) {
         let real = v.mean();
         let both: Vec<usize> = (0..real.len())
             .filter(|&i| x.mask[i] && y.mask[i])
