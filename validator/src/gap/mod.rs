@@ -55,8 +55,8 @@
 //! part of a mini view, where a pitch and a vertical translation look alike at the terrain's
 //! distance. From estec's eight captures a hidden
 //! vignetting of 0.476 came out 0.477 and a pose bias within 0.033° and 0.6 mm per axis
-//! (seed 2), a hidden distortion's dk1 −0.0417 came out −0.0366 (displacement at 0.7 of the
-//! radius −6 %), and nothing hidden named nothing.
+//! (seed 2), a hidden distortion (dk1 −0.0417, dk2 0.0056) came out dk1 −0.0379 ± 0.0003
+//! (displacement at 0.7 of the radius −2.9 %), and nothing hidden named nothing.
 
 pub mod apply;
 pub mod blur;
