@@ -169,8 +169,9 @@ fn nothing_is_named_when_nothing_is_hidden() {
 }
 
 /// A texture 20 mm too smooth (the laser reflectance and the SfM colours were computed from the
-/// albedo blurred by it) is named with its low-pass; the effect changes no render, so the
-/// photometric gap stays where it was.
+/// albedo blurred by it) is named with its low-pass. Its procedural detail has zero mean, so the
+/// photometric gap (against the expected render) stays where it was, while the texture's band
+/// power against the real albedo's comes back up.
 #[test]
 fn hidden_texture_lowpass_is_named_with_its_blur() {
     let v = gap(&[
@@ -184,6 +185,12 @@ fn hidden_texture_lowpass_is_named_with_its_blur() {
     assert!((sigma - 0.02).abs() < 0.005, "sigma_m {sigma}");
     assert!((v["texture"]["excess_m"].as_f64().unwrap() - sigma).abs() < 1e-12);
     assert!((v["gap_before"].as_f64().unwrap() - v["gap_after"].as_f64().unwrap()).abs() < 1e-9);
+    let band = |m: &str| v[m]["texture_band_log_ratio"].as_f64().unwrap();
+    let (before, after) = (band("metrics_before"), band("metrics_after"));
+    assert!(
+        after > before + 0.05,
+        "texture band power {before} -> {after}"
+    );
 }
 
 /// Mini seed 103 with nothing hidden: a pose bias of 1.1° and 2.9 cm once fitted its

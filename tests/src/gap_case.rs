@@ -48,9 +48,11 @@ pub struct CaseResult {
 
 /// The scalar figures a gap is judged by, one per kind of effect: the photometric RMS (DN:
 /// level, contrast, falloff, blur), the geometric alignment residual (band-pass units: pose
-/// and distortion), the spectrum's RMS log10 ratio render/real over the bands (noise) and the
-/// photometric RMS in cast shadow of the light (DN: shadows).
-pub fn figures(m: &Metrics) -> [f64; 4] {
+/// and distortion), the spectrum's RMS log10 ratio render/real over the bands (noise), the
+/// photometric RMS in cast shadow of the light (DN: shadows) and the texture's band-power
+/// deficit against the real albedo (log10, [`Metrics::texture_band_log_ratio`] negated: texture
+/// detail; NaN for a mesh entry).
+pub fn figures(m: &Metrics) -> [f64; 5] {
     let lr = &m.spectrum_log_ratio;
     let spectrum = (lr.iter().map(|x| x * x).sum::<f64>() / lr.len().max(1) as f64).sqrt();
     [
@@ -58,15 +60,17 @@ pub fn figures(m: &Metrics) -> [f64; 4] {
         m.alignment_residual,
         spectrum,
         m.shadow_rms_dn,
+        m.texture_band_log_ratio.map_or(f64::NAN, |r| -r),
     ]
 }
 
 /// Names of [`figures`]' entries.
-pub const FIGURES: [&str; 4] = [
+pub const FIGURES: [&str; 5] = [
     "photometric RMS, DN",
     "alignment residual",
     "spectrum RMS log ratio",
     "photometric RMS in cast shadow, DN",
+    "texture band-power deficit, log10",
 ];
 
 impl CaseResult {
@@ -107,7 +111,7 @@ impl CaseResult {
         format!(
             "{label:<22} seed {seed}: named {:?}{detail}; gap {:.2}→{:.2} DN (floor {:.2}), \
              alignment {:.4}→{:.4} ({:.4}), spectrum {:.3}→{:.3} ({:.3}), \
-             in shadow {:.2}→{:.2} DN ({:.2})",
+             in shadow {:.2}→{:.2} DN ({:.2}), texture deficit {:.3}→{:.3} ({:.3})",
             self.named(),
             b[0],
             a[0],
@@ -120,7 +124,10 @@ impl CaseResult {
             f[2],
             b[3],
             a[3],
-            f[3]
+            f[3],
+            b[4],
+            a[4],
+            f[4]
         )
     }
 }

@@ -57,14 +57,16 @@ const PAIR_FACTOR: f64 = 2.5;
 /// a fitted model can land that far under the floor (exposure seed 101: 0.43 DN, it absorbs
 /// the laser renders' own darkness). Alignment residual for the geometry: 0.02 (vignetting
 /// alone moves it 0.014). Spectrum RMS log ratio for noise: 0.05. Photometric RMS in cast
-/// shadow for shadows: 0.5 DN. `texture-lowpass` adds no detail to renders (see the gap
-/// module's known limits), so it has no figure to shrink.
+/// shadow for shadows: 0.5 DN. Texture band-power deficit against the real albedo for
+/// `texture-lowpass` (its procedural detail has zero mean, so the photometric RMS stays; see the
+/// gap module's known limits): 0.05.
 fn judged_by(effect: &str) -> Option<(usize, f64)> {
     match effect {
         "vignetting" | "gamma" | "exposure" | "blur" => Some((0, 0.5)),
         "distortion" | "pose-bias" => Some((1, 0.02)),
         "noise" => Some((2, 0.05)),
         "shadows" => Some((3, 0.5)),
+        "texture-lowpass" => Some((4, 0.05)),
         _ => None,
     }
 }

@@ -550,11 +550,13 @@ pub fn validate_entry_observed(
     observe: Option<&(dyn Fn(&ViewArtifacts<'_>) + Sync)>,
 ) -> Result<Certificate, ReaderError> {
     let e = view.entry(entry)?;
+    let sensor = stored_model(view, entry)?;
     let geometry = entry_geometry(view, entry)?;
+    // Renders here are samples (with the model's noise), so they carry its texture detail too.
+    let geometry = sensor.detailed(&geometry).unwrap_or(geometry);
     let scene = Scene::new(&geometry);
     let caps_entry = view.entry_of_kind("captures", kinds::CAPTURES)?;
     let light = campaign_light(view)?;
-    let sensor = stored_model(view, entry)?;
     let caps = view.captures("captures")?;
     let images = caps.images()?;
     let mut views_in: Vec<(String, String)> = images

@@ -108,6 +108,9 @@ pub fn run(
                 t.own_blur_m * 1e3
             );
         }
+        if let (Some(tb), Some(ta)) = (b.texture_band_log_ratio, a.texture_band_log_ratio) {
+            say!("  texture band power vs the real albedo (log10): {tb:.3} -> {ta:.3}");
+        }
         if let Some(i) = &index {
             say!("  report: {}", i.display());
         }

@@ -56,6 +56,10 @@ pub struct Metrics {
     pub real_by_intensity: Vec<(f64, f64)>,
     /// log10 power ratio render/real per spectral band (8 bands to 0.5 cycles/px), mean over views.
     pub spectrum_log_ratio: Vec<f64>,
+    /// log10 band power of the model's texture (with its detail) over the real albedo's, on the
+    /// ground in the texture's cells ([`super::texture::band_power_log_ratio`]); heightfield
+    /// entries only.
+    pub texture_band_log_ratio: Option<f64>,
     /// Noise variance of the real frames (from frame pairs), DN², used to correct the RMS.
     pub noise_variance_dn2: f64,
     /// Per view.
@@ -63,12 +67,16 @@ pub struct Metrics {
 }
 
 /// Measures the disagreement of `preds` (made with `model`) against the real `views`;
-/// `shadow[k]` marks view `k`'s pixels in cast shadow of the campaign light.
+/// `shadow[k]` marks view `k`'s pixels in cast shadow of the campaign light. `detailed[k]`,
+/// when given, is view `k`'s radiance rendered with the model's texture detail
+/// ([`SensorModel::detailed`]): like the model's noise, a sample's detail enters the spectrum
+/// only (its expectation is the plain render).
 pub fn measure(
     views: &[GapView],
     preds: &[Prediction],
     model: &SensorModel,
     shadow: &[Vec<bool>],
+    detailed: Option<&[Vec<f32>]>,
 ) -> Metrics {
     let mut sq = 0.0;
     let mut n = 0usize;
@@ -134,7 +142,8 @@ pub fn measure(
         shadow_n += view_shadow_n;
         n += vn;
         // Spectrum of the render with the model's noise against one real frame.
-        let sim = model.image(&p.radiance, w, h, cam, 0x9a9 + k as u64);
+        let radiance = detailed.and_then(|d| d.get(k)).unwrap_or(&p.radiance);
+        let sim = model.image(radiance, w, h, cam, 0x9a9 + k as u64);
         let lr = log_ratio(
             &radial_spectrum(&sim, w, h, BINS),
             &radial_spectrum(&v.frames[0], w, h, BINS),
@@ -192,6 +201,7 @@ pub fn measure(
             })
             .collect(),
         spectrum_log_ratio: spectrum,
+        texture_band_log_ratio: None,
         noise_variance_dn2: if noise_n > 0 {
             noise_sum / noise_n as f64
         } else {

@@ -35,11 +35,13 @@
 //! cells (a low-pass of 20.9, 21.2, 21.1 and 18.3 mm); mini seeds 101–103 with 13–19 mm read
 //! 11–22 mm.
 //!
-//! Adding the effect does not change renders: the detail is not in the entry, and sharpening
-//! the texture (an inverse of the fitted Gaussian) made every measure worse — photometric RMS
-//! 17.4 → 18.9 DN and the band-pass correlation 0.41 → 0.38 on a hidden σ of 5.6 mm — because
-//! it amplifies the texture's own noise. The remedy is a sharper texture source; the model
-//! records the diagnosis so simulators know what their renders lack.
+//! Sharpening the texture (an inverse of the fitted Gaussian) does not bring the detail back:
+//! it made every measure worse — photometric RMS 17.4 → 18.9 DN and the band-pass correlation
+//! 0.41 → 0.38 on a hidden σ of 5.6 mm; Van Cittert iterations on mini seed 101 (18 mm
+//! hidden) lowered the effective blur only from 23.9 to 21.9 mm while the correlation fell
+//! 0.46 → 0.06 — because it amplifies the texture's own noise. So the model adds detail with
+//! the missing *spectrum* to sample renders instead ([`crate::sensor::detail`]); the real
+//! pattern needs a sharper texture source.
 
 use rayon::prelude::*;
 use regolith_format::camera_model::CameraModel;
@@ -48,6 +50,8 @@ use regolith_format::frames::Pose;
 use crate::render::unproject;
 use crate::render::AlbedoGrid;
 use crate::sensor::gaussian_blur;
+
+pub use crate::sensor::detail::{own_blur_m, OWN_BLUR_BASE_M, OWN_BLUR_PER_CELL};
 
 /// One view for the texture measure (`w x h` images).
 #[derive(Debug, Clone, Copy)]
@@ -117,15 +121,6 @@ struct Ortho {
     weight: Vec<f32>,
 }
 
-/// The `A` of [`own_blur_m`], metres (see [`OWN_BLUR_PER_CELL`]).
-pub const OWN_BLUR_BASE_M: f64 = 0.0123;
-
-/// The `b` of [`own_blur_m`]. With [`OWN_BLUR_BASE_M`] a least-squares fit to the effective
-/// blur of faithful laser textures: estec seed 1 (full scans) at 1, 1.5, 2 and 3 cm cells
-/// read 13.6, 16.4, 18.7 and 22.8 mm (model 13.9, 15.6, 17.7, 22.7); mini seeds 101–106 at
-/// 1 cm 13.8 mm on average (11.7–16.2), at 2 cm 15.9 mm (14.3–18.4).
-pub const OWN_BLUR_PER_CELL: f64 = 0.64;
-
 /// Excess effective blur per metre of hidden low-pass: the measure reads a low-pass about
 /// 1.3 times too wide (13 hidden low-passes of 13–20 mm on both presets and 1–3 cm cells:
 /// 0.87–1.60, mean 1.29), because the real albedo image also holds shading detail the
@@ -141,12 +136,6 @@ pub const EXCESS_SPREAD: f64 = 0.17;
 /// below 6.5 mm (mini seed 102 at 1 cm cells, the widest reading); the corpus draws hidden
 /// low-passes of 15–30 mm.
 pub const MIN_EXCESS_M: f64 = 0.010;
-
-/// Expected effective blur of a faithful laser texture of `cell_m` cells, metres:
-/// `sqrt(A² + (b·c)²)`.
-pub fn own_blur_m(cell_m: f64) -> f64 {
-    (OWN_BLUR_BASE_M.powi(2) + (OWN_BLUR_PER_CELL * cell_m).powi(2)).sqrt()
-}
 
 /// The low-pass, metres, that an effective blur `sigma_fit_m` shows on top of the texture's
 /// own (0 when the texture is not blurrier than a faithful one).
@@ -223,6 +212,23 @@ impl TextureMeasure {
         f.dedup();
         f
     }
+}
+
+/// log10 of the band power (the correlation's band: a difference of Gaussians of 0.5 and 5
+/// cells) of `texture` over that of
+/// the real albedo, on the cells the views see: how much of the real surface's fine texture
+/// the entry's texture holds. A faithful texture holds less than all of it (its own blur),
+/// a low-passed one less again; the procedural detail of a `texture-lowpass`
+/// ([`crate::sensor::detail`]) gives the power back. `None` without enough terrain.
+pub fn band_power_log_ratio(views: &[TextureView<'_>], texture: &AlbedoGrid) -> Option<f64> {
+    let ladder = [0.0];
+    let (t, r) = views
+        .iter()
+        .filter_map(|v| view_sums(&ortho(v, texture, &ladder)?, texture, v.fold, &ladder))
+        .fold((0.0, 0.0), |(t, r), s| {
+            (t + s.var_texture, r + s.var_real[0])
+        });
+    (t > 0.0 && r > 0.0).then(|| (t / r).log10())
 }
 
 /// The real albedo of view `v` gathered on the cells of `texture` it sees (each pixel centre

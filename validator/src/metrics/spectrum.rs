@@ -26,47 +26,13 @@ pub fn radial_spectrum(img: &[f32], w: usize, h: usize, bands: usize) -> RadialS
             power: vec![0.0; bands],
         };
     }
-    let mean = img.iter().map(|&v| f64::from(v)).sum::<f64>() / img.len() as f64;
-    let hann = |i: usize, n: usize| {
-        0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (n - 1) as f64).cos()
-    };
-    let mut data: Vec<Complex<f64>> = (0..w * h)
-        .map(|i| {
-            Complex::new(
-                (f64::from(img[i]) - mean) * hann(i % w, w) * hann(i / w, h),
-                0.0,
-            )
-        })
-        .collect();
-    let mut planner = FftPlanner::<f64>::new();
-    let row = planner.plan_fft_forward(w);
-    for r in data.chunks_exact_mut(w) {
-        row.process(r);
-    }
-    let col = planner.plan_fft_forward(h);
-    let mut column = vec![Complex::new(0.0, 0.0); h];
-    for x in 0..w {
-        for y in 0..h {
-            column[y] = data[y * w + x];
-        }
-        col.process(&mut column);
-        for y in 0..h {
-            data[y * w + x] = column[y];
-        }
-    }
+    let values: Vec<f64> = img.iter().map(|&v| f64::from(v)).collect();
+    let (data, _) = hann_fft(&values, w, h);
     let (mut sum, mut cnt) = (vec![0.0; bands], vec![0usize; bands]);
     for y in 0..h {
-        let fy = if y <= h / 2 {
-            y as f64
-        } else {
-            y as f64 - h as f64
-        } / h as f64;
+        let fy = dft_frequency(y, h);
         for x in 0..w {
-            let fx = if x <= w / 2 {
-                x as f64
-            } else {
-                x as f64 - w as f64
-            } / w as f64;
+            let fx = dft_frequency(x, w);
             let f = fx.hypot(fy);
             if f == 0.0 || f > 0.5 {
                 continue;
@@ -82,6 +48,68 @@ pub fn radial_spectrum(img: &[f32], w: usize, h: usize, bands: usize) -> RadialS
         .map(|(s, &c)| if c > 0 { s / c as f64 } else { 0.0 })
         .collect();
     RadialSpectrum { band_upper, power }
+}
+
+/// The 2-D DFT of `values` (row-major `w x h`, `w, h >= 2`) after removing their mean and
+/// applying a separable Hann window, and the window's energy `Σ window²` (the periodogram
+/// `|F|² / Σ window²` then estimates the power per sample).
+pub(crate) fn hann_fft(values: &[f64], w: usize, h: usize) -> (Vec<Complex<f64>>, f64) {
+    let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
+    let hann = |i: usize, n: usize| {
+        0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (n.max(2) - 1) as f64).cos()
+    };
+    let mut energy = 0.0;
+    let mut data: Vec<Complex<f64>> = values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let win = hann(i % w, w) * hann(i / w, h);
+            energy += win * win;
+            Complex::new((v - mean) * win, 0.0)
+        })
+        .collect();
+    fft2(&mut data, w, h, false);
+    (data, energy)
+}
+
+/// In-place 2-D discrete Fourier transform of a row-major `w x h` array (rows, then columns);
+/// `inverse` runs the unnormalised inverse (divide by `w * h` to undo a forward transform).
+pub(crate) fn fft2(data: &mut [Complex<f64>], w: usize, h: usize, inverse: bool) {
+    if w == 0 || h == 0 || data.len() != w * h {
+        return;
+    }
+    let mut planner = FftPlanner::<f64>::new();
+    let plan = |p: &mut FftPlanner<f64>, n: usize| {
+        if inverse {
+            p.plan_fft_inverse(n)
+        } else {
+            p.plan_fft_forward(n)
+        }
+    };
+    let row = plan(&mut planner, w);
+    for r in data.chunks_exact_mut(w) {
+        row.process(r);
+    }
+    let col = plan(&mut planner, h);
+    let mut column = vec![Complex::new(0.0, 0.0); h];
+    for x in 0..w {
+        for y in 0..h {
+            column[y] = data[y * w + x];
+        }
+        col.process(&mut column);
+        for y in 0..h {
+            data[y * w + x] = column[y];
+        }
+    }
+}
+
+/// Signed frequency, cycles per sample, of DFT index `i` of `n`.
+pub(crate) fn dft_frequency(i: usize, n: usize) -> f64 {
+    if i <= n / 2 {
+        i as f64 / n as f64
+    } else {
+        (i as f64 - n as f64) / n as f64
+    }
 }
 
 /// log10(power_a / power_b) per band (0 where either is zero).

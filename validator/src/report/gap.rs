@@ -123,7 +123,7 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
     if let Some(t) = &r.texture {
         page.heading(2, "Texture detail", None);
         page.paragraph(&format!(
-            "The entry's texture ({:.3} m cells) matches the real albedo blurred by {:.1} mm on the ground (band-passed correlation {:.2}); a faithful texture of these cells shows about {:.1} mm, so the texture lacks a low-pass of {:.1} mm. Renders cannot restore that detail: the remedy is a sharper texture source.",
+            "The entry's texture ({:.3} m cells) matches the real albedo blurred by {:.1} mm on the ground (band-passed correlation {:.2}); a faithful texture of these cells shows about {:.1} mm, so the texture lacks a low-pass of {:.1} mm. The real pattern cannot be recovered from the texture (the remedy is a sharper texture source); with the effect in the model, sample renders carry procedural detail of the missing spectrum.",
             t.cell_m,
             t.effective_blur_m * 1e3,
             t.correlation,
@@ -154,6 +154,10 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
             row("noise variance of the real frames, DN²", &|m| {
                 m.noise_variance_dn2
             }),
+            row(
+                "texture band power / the real albedo's, log10 (with procedural detail)",
+                &|m| m.texture_band_log_ratio.unwrap_or(f64::NAN),
+            ),
         ],
     );
     let view_rows: Vec<Vec<Cell>> = b

@@ -8,7 +8,7 @@
 //! |---|---|---|
 //! | geometry | `distortion`, `pose-bias` | [`SensorModel::camera`], [`SensorModel::pose`] |
 //! | render | `shadows` | [`SensorModel::render_options`] |
-//! | texture | `texture-lowpass` | [`SensorModel::albedo`] |
+//! | texture | `texture-lowpass` | [`SensorModel::detailed`] (the corpus: [`SensorModel::albedo`]) |
 //! | image | `vignetting`, `blur`, `exposure`, `noise`, `gamma` | [`SensorModel::image`] |
 //!
 //! The image effects run in the physical order of a camera, whatever their order in the list:
@@ -17,6 +17,7 @@
 //! An empty model is the plain model: `DN = 255 * radiance`, no other change.
 
 mod blur;
+pub mod detail;
 mod effects;
 pub mod image;
 
@@ -25,7 +26,7 @@ use serde::{Deserialize, Serialize};
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::{quat_from_axis_angle, Pose};
 
-use crate::render::{AlbedoGrid, Light, RenderOptions};
+use crate::render::{AlbedoGrid, Geometry, Light, RenderOptions};
 
 pub use blur::gaussian_blur;
 pub use effects::{distortion_shift, ParamRange, MIN_DISTORTION_SHIFT};
@@ -89,7 +90,8 @@ pub enum Effect {
         /// Rotations about the camera x, y, z axes, degrees (applied x first, then y, then z).
         rotation_deg: [f64; 3],
     },
-    /// The albedo blurred by a Gaussian of this size (texture-side).
+    /// The entry's texture lacks the detail a ground Gaussian of this size removes: sample
+    /// renders add procedural detail of that spectrum ([`detail`]).
     TextureLowpass {
         /// Standard deviation, metres on the ground.
         sigma_m: f64,
@@ -167,8 +169,8 @@ impl SensorModel {
     }
 
     /// `grid` low-passed by every `texture-lowpass` effect (sigma converted to cells): how the
-    /// corpus makes an entry's texture too smooth. Renders never call it — in an entry's model
-    /// the effect records that its texture lacks that detail (see `gap::texture`).
+    /// corpus makes an entry's texture too smooth. An entry's model does the opposite, see
+    /// [`SensorModel::detailed`].
     pub fn albedo(&self, grid: &AlbedoGrid) -> AlbedoGrid {
         let mut out = grid.clone();
         for e in &self.effects {
@@ -180,6 +182,24 @@ impl SensorModel {
             }
         }
         out
+    }
+
+    /// The geometry a sample render of an entry uses under this model: with a
+    /// `texture-lowpass` (the last one wins), a heightfield's albedo with the procedural detail
+    /// the low-pass removed ([`detail`]). `None` when the model leaves the geometry as it is
+    /// (no `texture-lowpass`, or a mesh).
+    pub fn detailed(&self, geometry: &Geometry) -> Option<Geometry> {
+        let sigma_m = self.effects.iter().rev().find_map(|e| match e {
+            Effect::TextureLowpass { sigma_m } => Some(*sigma_m),
+            _ => None,
+        })?;
+        match geometry {
+            Geometry::Heightfield { grid, albedo } => Some(Geometry::Heightfield {
+                grid: grid.clone(),
+                albedo: detail::restore_detail(albedo, sigma_m),
+            }),
+            Geometry::Mesh(_) => None,
+        }
     }
 
     /// Turns linear radiance into digital numbers (0..255 scale, unclamped float) through the
