@@ -139,27 +139,27 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
             Cell::new(format!("{:.3}", f(a))),
         ]
     };
-    page.table(
-        &["metric", "before", "after"],
-        &[
-            row("photometric RMS, DN (headline)", &|m| m.photometric_rms_dn),
-            row("geometric alignment residual", &|m| m.alignment_residual),
-            row(
-                &format!(
-                    "photometric RMS in cast shadow of the light, DN ({} px)",
-                    b.shadow_pixels
-                ),
-                &|m| m.shadow_rms_dn,
+    let mut rows = vec![
+        row("photometric RMS, DN (headline)", &|m| m.photometric_rms_dn),
+        row("geometric alignment residual", &|m| m.alignment_residual),
+        row(
+            &format!(
+                "photometric RMS in cast shadow of the light, DN ({} px)",
+                b.shadow_pixels
             ),
-            row("noise variance of the real frames, DN²", &|m| {
-                m.noise_variance_dn2
-            }),
-            row(
-                "texture band power / the real albedo's, log10 (with procedural detail)",
-                &|m| m.texture_band_log_ratio.unwrap_or(f64::NAN),
-            ),
-        ],
-    );
+            &|m| m.shadow_rms_dn,
+        ),
+        row("noise variance of the real frames, DN²", &|m| {
+            m.noise_variance_dn2
+        }),
+    ];
+    if b.texture_band_log_ratio.is_some() {
+        rows.push(row(
+            "texture band power / the real albedo's, log10 (with procedural detail)",
+            &|m| m.texture_band_log_ratio.unwrap_or(f64::NAN),
+        ));
+    }
+    page.table(&["metric", "before", "after"], &rows);
     let view_rows: Vec<Vec<Cell>> = b
         .views
         .iter()
