@@ -167,6 +167,21 @@ pub fn restore_detail(grid: &AlbedoGrid, sigma_m: f64) -> AlbedoGrid {
         ^ (h as u64).rotate_left(21)
         ^ grid.cell_m.to_bits().rotate_left(42)
         ^ sigma_m.to_bits();
+    let field = shaped_noise(w, h, seed, |f| {
+        (a * f.powf(-beta) * gauss2(own, f) * (1.0 - gauss2(sigma, f))).sqrt()
+    });
+    for (v, d) in out.value.iter_mut().zip(&field) {
+        if *v > 0.0 {
+            *v = (f64::from(*v) + d).clamp(0.0, 1.0) as f32;
+        }
+    }
+    out
+}
+
+/// A `w x h` Gaussian random field: white noise (ChaCha8 from `seed`) whose Fourier
+/// coefficient at radial frequency `f > 0` (cycles per cell) is multiplied by `amplitude(f)`
+/// (the square root of the field's power spectrum per cell) and the mean set to 0.
+fn shaped_noise(w: usize, h: usize, seed: u64, amplitude: impl Fn(f64) -> f64) -> Vec<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut field: Vec<Complex<f64>> = (0..w * h)
         .map(|_| Complex::new(StandardNormal.sample(&mut rng), 0.0))
@@ -176,22 +191,12 @@ pub fn restore_detail(grid: &AlbedoGrid, sigma_m: f64) -> AlbedoGrid {
         let fy = dft_frequency(y, h);
         for x in 0..w {
             let f = dft_frequency(x, w).hypot(fy);
-            let power = if f > 0.0 {
-                a * f.powf(-beta) * gauss2(own, f) * (1.0 - gauss2(sigma, f))
-            } else {
-                0.0
-            };
-            field[y * w + x] *= power.sqrt();
+            field[y * w + x] *= if f > 0.0 { amplitude(f) } else { 0.0 };
         }
     }
     fft2(&mut field, w, h, true);
     let n = (w * h) as f64;
-    for (v, d) in out.value.iter_mut().zip(&field) {
-        if *v > 0.0 {
-            *v = (f64::from(*v) + d.re / n).clamp(0.0, 1.0) as f32;
-        }
-    }
-    out
+    field.iter().map(|c| c.re / n).collect()
 }
 
 #[cfg(test)]
@@ -201,27 +206,13 @@ mod tests {
 
     /// A power-law random texture (β = 2) around 0.35, `n x n` cells of 1 cm.
     fn power_law_grid(n: usize, seed: u64) -> AlbedoGrid {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let mut field: Vec<Complex<f64>> = (0..n * n)
-            .map(|_| Complex::new(StandardNormal.sample(&mut rng), 0.0))
-            .collect();
-        fft2(&mut field, n, n, false);
-        for y in 0..n {
-            for x in 0..n {
-                let f = dft_frequency(x, n).hypot(dft_frequency(y, n));
-                field[y * n + x] *= if f > 0.0 { 6e-3 * f.powf(-1.0) } else { 0.0 };
-            }
-        }
-        fft2(&mut field, n, n, true);
+        let field = shaped_noise(n, n, seed, |f| 6e-3 / f);
         AlbedoGrid {
             origin_m: [0.0, 0.0],
             cell_m: 0.01,
             width: n,
             height: n,
-            value: field
-                .iter()
-                .map(|c| (0.35 + c.re / (n * n) as f64) as f32)
-                .collect(),
+            value: field.iter().map(|d| (0.35 + d) as f32).collect(),
         }
     }
 
