@@ -35,9 +35,10 @@
 //! ([`Metrics::texture_band_log_ratio`]) is what shrinks — on mini seeds 101 and 102 from
 //! −0.790 and −0.737 to −0.655 and −0.471, where the same campaigns with a faithful texture
 //! read −0.691 and −0.618 (the detail's spectrum, extrapolated from where the low-passed
-//! texture still shows its signal, overshoots on seed 102); and the smallest level or contrast change named (exposure, gamma) is about
-//! 5 DN RMS, because renders of laser DEMs are themselves a little darker and flatter than the
-//! real images (a radial falloff cannot mimic that, so vignetting is named from 3 DN²).
+//! texture still shows its signal, overshoots on seed 102); and the smallest level or
+//! contrast change named (exposure, gamma) is about 5 DN RMS, because renders of laser DEMs
+//! are themselves a little darker and flatter than the real images (a radial falloff cannot
+//! mimic that, so vignetting is named from 3 DN²).
 //! Parameters are as good as the views are many and as wide as the scene they show. From
 //! mini's two captures (four views) a vignetting strength comes out within 5 % alone and next
 //! to a response curve or a pose bias (seeds 101–103: −0.4, −1.0, −4.3 %; +2.0 and −0.7 % next
@@ -1161,11 +1162,10 @@ impl TextureInputs {
 /// Updates `model` and returns the figures.
 fn texture_stage(
     ctx: &Ctx<'_>,
-    geometry: &Geometry,
     model: &mut SensorModel,
     out: &mut Vec<Named>,
 ) -> Option<TextureFigures> {
-    let Geometry::Heightfield { grid, albedo } = geometry else {
+    let Geometry::Heightfield { grid, albedo } = ctx.geometry else {
         return None;
     };
     let inputs = TextureInputs::new(ctx, grid, albedo, model);
@@ -1277,12 +1277,7 @@ pub fn texture_figures(
     let geometry_data = entry_geometry(view, entry)?;
     let ctx = Ctx::load(view, &geometry_data, captures, 1)?;
     let mut model = stored_model(view, entry)?;
-    Ok(texture_stage(
-        &ctx,
-        &geometry_data,
-        &mut model,
-        &mut Vec::new(),
-    ))
+    Ok(texture_stage(&ctx, &mut model, &mut Vec::new()))
 }
 
 /// Measures the disagreement of `entry`'s renders made with `model` against the real captures,
@@ -1327,7 +1322,7 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
         photometry_stage(&ctx, &mut model, opts.min_share, &mut found),
     );
     shadows_stage(&ctx, &mut model, &mut found);
-    let texture = texture_stage(&ctx, &geometry_data, &mut model, &mut found);
+    let texture = texture_stage(&ctx, &mut model, &mut found);
     noise_stage(&ctx, &preds_before, &mut model, &mut found);
     let preds_after = ctx.predict_all(&model);
     let metrics_after = ctx.measure(&preds_after, &model, &shadow);
