@@ -61,13 +61,16 @@ impl Pose {
 
     /// Applies the transform to a point.
     pub fn transform_point(&self, p: [f64; 3]) -> [f64; 3] {
-        let r = self.rotation_matrix();
-        let t = self.translation_m;
-        [
-            r[0][0] * p[0] + r[0][1] * p[1] + r[0][2] * p[2] + t[0],
-            r[1][0] * p[0] + r[1][1] * p[1] + r[1][2] * p[2] + t[1],
-            r[2][0] * p[0] + r[2][1] * p[1] + r[2][2] * p[2] + t[2],
-        ]
+        self.matrix().apply(p)
+    }
+
+    /// The transform as a rotation matrix and translation, for applying one pose to many
+    /// points without converting the quaternion for each.
+    pub fn matrix(&self) -> RigidMatrix {
+        RigidMatrix {
+            r: self.rotation_matrix(),
+            t: self.translation_m,
+        }
     }
 
     /// Rotates a direction (no translation).
@@ -126,6 +129,27 @@ impl Pose {
             self.translation_m[2] - other.translation_m[2],
         ];
         (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+    }
+}
+
+/// A rigid transform `p_a = r * p_b + t` in matrix form ([`Pose::matrix`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidMatrix {
+    /// Row-major rotation matrix.
+    pub r: [[f64; 3]; 3],
+    /// Translation, metres.
+    pub t: [f64; 3],
+}
+
+impl RigidMatrix {
+    /// Applies the transform to a point.
+    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        let (r, t) = (&self.r, &self.t);
+        [
+            r[0][0] * p[0] + r[0][1] * p[1] + r[0][2] * p[2] + t[0],
+            r[1][0] * p[0] + r[1][1] * p[1] + r[1][2] * p[2] + t[1],
+            r[2][0] * p[0] + r[2][1] * p[1] + r[2][2] * p[2] + t[2],
+        ]
     }
 }
 

@@ -26,6 +26,7 @@
 //! stopped at 0.025 on a slope). The distortion's second radial term is fitted last, from the
 //! one-term solution, and only when it lowers the held-out residual (see the gap module).
 
+use rayon::prelude::*;
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
 
@@ -292,19 +293,20 @@ pub fn residuals(obs: &[Observation], views: &[ViewImages], p: &[f64; 8], out: &
         effects: vec![bias],
     }
     .pose(&Pose::IDENTITY)
-    .inverse();
+    .inverse()
+    .matrix();
     let dmodel = SensorModel {
         effects: vec![dist],
     };
     let cams: Vec<CameraModel> = views.iter().map(|v| dmodel.camera(&v.camera)).collect();
-    for o in obs {
+    out.par_extend(obs.par_iter().map(|o| {
         let v = &views[o.view];
         let real = cams[o.view]
-            .project(bias.transform_point(o.point))
+            .project(bias.apply(o.point))
             .and_then(|q| bicubic(&v.real, v.width, v.height, q[0], q[1]))
             .unwrap_or(0.0);
-        out.push(real - o.value);
-    }
+        real - o.value
+    }));
 }
 
 /// A fit of a subset.

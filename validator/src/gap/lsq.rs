@@ -5,8 +5,17 @@
 //! each effect model a plain function (no hand-written derivatives to get wrong). Bounds are
 //! enforced by clamping every trial step (the catalogue's plausible ranges, widened). The
 //! standard errors are `sqrt(diag((JᵀJ)⁻¹) · SSE / (n − k))` at the solution.
+//!
+//! The gap's fits are large-residual problems: the dense alignment's band-pass residual is as
+//! large as the signal (the entry's texture is not the real one), so `JᵀJ` overstates the
+//! curvature and each Gauss–Newton step covers only a fraction of the way (mini, nothing
+//! hidden: dk1 moved by a geometric series of ratio ≈ 0.8 and the fit stopped at the 200
+//! iteration cap short of its minimum). An accepted step is therefore extrapolated along its
+//! direction (×2, ×4, … ×16) while the cost keeps falling; the same fits converge in 4–11
+//! iterations. The Jacobian's columns are evaluated in parallel.
 
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 /// A least-squares problem: `residuals(params, out)` fills `out` (same length every call).
 pub struct Problem<'a> {
@@ -33,7 +42,12 @@ pub struct Solution {
     pub n: usize,
     /// Standard error per parameter (`NaN` when not identifiable).
     pub std_err: Vec<f64>,
+    /// Jacobian evaluations made.
+    pub iterations: usize,
 }
+
+/// Largest multiple of an accepted step tried along its direction (doubling from 2).
+const MAX_EXTRAPOLATION: f64 = 16.0;
 
 fn sse(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
@@ -45,25 +59,27 @@ fn clamp(p: &mut [f64], lo: &[f64], hi: &[f64]) {
     }
 }
 
+/// The forward-difference Jacobian, one column per parameter, the columns evaluated in
+/// parallel (each is a full residual evaluation; the values do not depend on the thread count).
 fn jacobian(pb: &Problem<'_>, p: &[f64], r0: &[f64]) -> DMatrix<f64> {
     let k = p.len();
-    let mut j = DMatrix::<f64>::zeros(r0.len(), k);
-    let mut r = Vec::with_capacity(r0.len());
-    for c in 0..k {
-        let mut q = p.to_vec();
-        // Step away from the nearer bound so the trial stays inside.
-        let h = if q[c] + pb.step[c] > pb.upper[c] {
-            -pb.step[c]
-        } else {
-            pb.step[c]
-        };
-        q[c] += h;
-        (pb.residuals)(&q, &mut r);
-        for (i, (a, b)) in r.iter().zip(r0).enumerate() {
-            j[(i, c)] = (a - b) / h;
-        }
-    }
-    j
+    let columns: Vec<Vec<f64>> = (0..k)
+        .into_par_iter()
+        .map(|c| {
+            let mut q = p.to_vec();
+            // Step away from the nearer bound so the trial stays inside.
+            let h = if q[c] + pb.step[c] > pb.upper[c] {
+                -pb.step[c]
+            } else {
+                pb.step[c]
+            };
+            q[c] += h;
+            let mut r = Vec::with_capacity(r0.len());
+            (pb.residuals)(&q, &mut r);
+            r.iter().zip(r0).map(|(a, b)| (a - b) / h).collect()
+        })
+        .collect();
+    DMatrix::from_fn(r0.len(), k, |i, c| columns[c][i])
 }
 
 /// Minimises the sum of squared residuals of `pb`.
@@ -80,11 +96,14 @@ pub fn solve(pb: &Problem<'_>, max_iter: usize) -> Solution {
             sse: cost,
             n: r.len(),
             std_err: vec![f64::NAN; k],
+            iterations: 0,
         };
     }
     let mut lambda = 1e-3;
     let mut jtj = DMatrix::<f64>::zeros(k, k);
+    let mut iterations = 0;
     for _ in 0..max_iter {
+        iterations += 1;
         let j = jacobian(pb, &p, &r);
         jtj = j.transpose() * &j;
         let g = j.transpose() * DVector::from_column_slice(&r);
@@ -105,6 +124,25 @@ pub fn solve(pb: &Problem<'_>, max_iter: usize) -> Solution {
             let ct = sse(&rt);
             if ct.is_finite() && ct < cost {
                 let gain = (cost - ct) / cost.max(1e-300);
+                let (mut trial, mut rt, mut ct) = (trial, rt, ct);
+                // Extrapolate along the accepted step while that still lowers the cost.
+                let mut scale = 2.0;
+                while scale <= MAX_EXTRAPOLATION {
+                    let mut further: Vec<f64> = p
+                        .iter()
+                        .zip(delta.iter())
+                        .map(|(a, d)| a + scale * d)
+                        .collect();
+                    clamp(&mut further, &pb.lower, &pb.upper);
+                    let mut rf = Vec::new();
+                    (pb.residuals)(&further, &mut rf);
+                    let cf = sse(&rf);
+                    if !(cf.is_finite() && cf < ct) {
+                        break;
+                    }
+                    (trial, rt, ct) = (further, rf, cf);
+                    scale *= 2.0;
+                }
                 p = trial;
                 r = rt;
                 cost = ct;
@@ -131,6 +169,7 @@ pub fn solve(pb: &Problem<'_>, max_iter: usize) -> Solution {
         sse: cost,
         n,
         std_err,
+        iterations,
     }
 }
 
@@ -175,5 +214,49 @@ mod tests {
             100,
         );
         assert!(s.params[0] <= 1.5);
+    }
+
+    /// Residuals as large as the model (a pattern the model reproduces at ten times its
+    /// contrast, as a render only partly reproduces the real image's texture): `JᵀJ`
+    /// overstates the curvature several times and plain Gauss–Newton steps cover a fraction of
+    /// the remaining way.
+    #[test]
+    fn reaches_the_minimum_of_a_large_residual_problem_in_few_iterations() {
+        let xs: Vec<f64> = (0..400).map(|i| f64::from(i) / 100.0).collect();
+        let noise = |i: usize| 0.3 * ((i as f64 * 12.9898).sin() * 43758.5453).fract();
+        let ys: Vec<f64> = xs
+            .iter()
+            .enumerate()
+            .map(|(i, x)| 0.1 * (1.3 * x).cos() + noise(i))
+            .collect();
+        let f = |p: &[f64], out: &mut Vec<f64>| {
+            out.clear();
+            out.extend(xs.iter().zip(&ys).map(|(x, y)| y - (p[0] * x).cos()));
+        };
+        let pb = Problem {
+            residuals: &f,
+            start: vec![1.1],
+            lower: vec![0.0],
+            upper: vec![3.0],
+            step: vec![1e-6],
+        };
+        let s = solve(&pb, 200);
+        // The minimum by a fine scan around the solution.
+        let cost = |p: f64| {
+            let mut r = Vec::new();
+            f(&[p], &mut r);
+            sse(&r)
+        };
+        let best = (-1000..=1000)
+            .map(|i| s.params[0] + f64::from(i) * 1e-5)
+            .min_by(|a, b| cost(*a).total_cmp(&cost(*b)))
+            .unwrap_or(f64::NAN);
+        assert!(
+            (s.params[0] - best).abs() < 2e-5,
+            "{} vs {best}",
+            s.params[0]
+        );
+        // Without the extrapolation: 18 iterations; with it: 5.
+        assert!(s.iterations <= 10, "{} iterations", s.iterations);
     }
 }
