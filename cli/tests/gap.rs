@@ -165,13 +165,14 @@ fn nothing_is_named_when_nothing_is_hidden() {
     // The texture measure ran and found the texture as sharp as a faithful one.
     let excess = v["texture"]["excess_m"].as_f64().unwrap();
     assert!(excess < 0.01, "texture excess {excess}");
+    assert_eq!(v["gap_metric"], "photometric_rms_dn");
     assert!((v["gap_before"].as_f64().unwrap() - v["gap_after"].as_f64().unwrap()).abs() < 1e-9);
 }
 
 /// A texture 20 mm too smooth (the laser reflectance and the SfM colours were computed from the
 /// albedo blurred by it) is named with its low-pass. Its procedural detail has zero mean, so the
-/// photometric gap (against the expected render) stays where it was, while the texture's band
-/// power against the real albedo's comes back up.
+/// photometric RMS (against the expected render) stays where it was, while the texture's band
+/// power against the real albedo's comes back up: that deficit is the run's headline.
 #[test]
 fn hidden_texture_lowpass_is_named_with_its_blur() {
     let v = gap(&[
@@ -184,13 +185,17 @@ fn hidden_texture_lowpass_is_named_with_its_blur() {
     let sigma = param(&v, "texture-lowpass", "sigma_m");
     assert!((sigma - 0.02).abs() < 0.005, "sigma_m {sigma}");
     assert!((v["texture"]["excess_m"].as_f64().unwrap() - sigma).abs() < 1e-12);
-    assert!((v["gap_before"].as_f64().unwrap() - v["gap_after"].as_f64().unwrap()).abs() < 1e-9);
+    let rms = |m: &str| v[m]["photometric_rms_dn"].as_f64().unwrap();
+    assert!((rms("metrics_before") - rms("metrics_after")).abs() < 1e-9);
     let band = |m: &str| v[m]["texture_band_log_ratio"].as_f64().unwrap();
     let (before, after) = (band("metrics_before"), band("metrics_after"));
     assert!(
         after > before + 0.05,
         "texture band power {before} -> {after}"
     );
+    assert_eq!(v["gap_metric"], "texture_band_deficit");
+    assert_eq!(v["gap_before"].as_f64(), Some(-before));
+    assert_eq!(v["gap_after"].as_f64(), Some(-after));
 }
 
 /// Mini seed 103 with nothing hidden: a pose bias of 1.1° and 2.9 cm once fitted its
@@ -247,6 +252,7 @@ fn hidden_distortion_is_named_alone() {
     assert_eq!(named(&v), ["distortion"]);
     let dk1 = param(&v, "distortion", "dk1");
     assert!((dk1 + 0.045).abs() < 0.015, "dk1 {dk1}");
+    assert_eq!(v["gap_metric"], "alignment_residual");
     assert!(v["gap_after"].as_f64().unwrap() < v["gap_before"].as_f64().unwrap());
 }
 

@@ -11,7 +11,7 @@ use regolith_corpus::effects::HiddenSpec;
 use regolith_corpus::presets::Preset;
 use regolith_corpus::{generate, GenerateOptions};
 use regolith_reader::{Database, Writer};
-use regolith_validator::gap::{self, GapOptions, GapResult, Metrics};
+use regolith_validator::gap::{self, Figure, GapOptions, GapResult, Metrics};
 use regolith_validator::sensor::{Effect, SensorModel};
 
 /// The cases of the proof: nothing hidden, each catalogue effect alone, and three pairs that
@@ -46,32 +46,10 @@ pub struct CaseResult {
     pub floor: Metrics,
 }
 
-/// The scalar figures a gap is judged by, one per kind of effect: the photometric RMS (DN:
-/// level, contrast, falloff, blur), the geometric alignment residual (band-pass units: pose
-/// and distortion), the spectrum's RMS log10 ratio render/real over the bands (noise), the
-/// photometric RMS in cast shadow of the light (DN: shadows) and the texture's band-power
-/// deficit against the real albedo (log10, [`Metrics::texture_band_log_ratio`] negated: texture
-/// detail; NaN for a mesh entry).
+/// Every [`Figure`] of `m`, in [`Figure::ALL`]'s order.
 pub fn figures(m: &Metrics) -> [f64; 5] {
-    let lr = &m.spectrum_log_ratio;
-    let spectrum = (lr.iter().map(|x| x * x).sum::<f64>() / lr.len().max(1) as f64).sqrt();
-    [
-        m.photometric_rms_dn,
-        m.alignment_residual,
-        spectrum,
-        m.shadow_rms_dn,
-        m.texture_band_log_ratio.map_or(f64::NAN, |r| -r),
-    ]
+    Figure::ALL.map(|f| f.of(m))
 }
-
-/// Names of [`figures`]' entries.
-pub const FIGURES: [&str; 5] = [
-    "photometric RMS, DN",
-    "alignment residual",
-    "spectrum RMS log ratio",
-    "photometric RMS in cast shadow, DN",
-    "texture band-power deficit, log10",
-];
 
 impl CaseResult {
     /// Names of the named effects, in the order named.

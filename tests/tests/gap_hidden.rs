@@ -17,7 +17,8 @@
 use std::collections::BTreeMap;
 
 use regolith_format::frames::Pose;
-use regolith_tests::gap_case::{cases, figures, run_case, CaseResult, Confusion, FIGURES};
+use regolith_tests::gap_case::{cases, figures, run_case, CaseResult, Confusion};
+use regolith_validator::gap::Figure;
 use regolith_validator::sensor::{distortion_shift, Effect, SensorModel};
 
 const SEEDS: [u64; 2] = [101, 102];
@@ -51,24 +52,22 @@ const POSE_BIAS_TOL_M: f64 = 0.007;
 /// vignetting's): exposure and the response curve are only jointly identifiable with the
 /// level and falloff fitted next to them.
 const PAIR_FACTOR: f64 = 2.5;
-/// The figure (an index into [`figures`]) each effect's gap is judged by, and the smallest
-/// excess of the gap over its floor (the same campaign measured with the true hidden effects
-/// added) that is judged. Photometric RMS for level, contrast, falloff and blur: 0.5 DN, since
-/// a fitted model can land that far under the floor (exposure seed 101: 0.43 DN, it absorbs
-/// the laser renders' own darkness). Alignment residual for the geometry: 0.02 (vignetting
-/// alone moves it 0.014). Spectrum RMS log ratio for noise: 0.05. Photometric RMS in cast
-/// shadow for shadows: 0.5 DN. Texture band-power deficit against the real albedo for
-/// `texture-lowpass` (its procedural detail has zero mean, so the photometric RMS stays; see the
-/// gap module's known limits): 0.05.
+/// The figure (an index into [`Figure::ALL`]) each effect's gap is judged by — the one it
+/// shrinks, [`Figure::for_effect`] — and the smallest excess of the gap over its floor (the same
+/// campaign measured with the true hidden effects added) that is judged. Photometric RMS: 0.5
+/// DN, since a fitted model can land that far under the floor (exposure seed 101: 0.43 DN, it
+/// absorbs the laser renders' own darkness). Alignment residual: 0.02 (vignetting alone moves
+/// it 0.014). Spectrum RMS log ratio: 0.05. Photometric RMS in cast shadow: 0.5 DN. Texture
+/// band-power deficit: 0.05.
 fn judged_by(effect: &str) -> Option<(usize, f64)> {
-    match effect {
-        "vignetting" | "gamma" | "exposure" | "blur" => Some((0, 0.5)),
-        "distortion" | "pose-bias" => Some((1, 0.02)),
-        "noise" => Some((2, 0.05)),
-        "shadows" => Some((3, 0.5)),
-        "texture-lowpass" => Some((4, 0.05)),
-        _ => None,
-    }
+    let figure = Figure::for_effect(effect)?;
+    let k = Figure::ALL.iter().position(|f| *f == figure)?;
+    let min_excess = match figure {
+        Figure::PhotometricRmsDn | Figure::ShadowRmsDn => 0.5,
+        Figure::AlignmentResidual => 0.02,
+        Figure::SpectrumRmsLogRatio | Figure::TextureBandDeficit => 0.05,
+    };
+    Some((k, min_excess))
 }
 
 /// Shrink checks of one case: every figure its hidden effects are judged by must shrink by at
@@ -88,7 +87,7 @@ fn check_shrink(r: &CaseResult, hidden: &[&str], bad: &mut Vec<String>) {
         if excess > min_excess && shrink < 0.5 * excess {
             bad.push(format!(
                 "{h}: {} {:.3}→{:.3} shrank by {shrink:.3}, under half its excess {excess:.3} over the floor {:.3}",
-                FIGURES[k], before[k], after[k], floor[k]
+                Figure::ALL[k].label(), before[k], after[k], floor[k]
             ));
         }
     }

@@ -164,8 +164,8 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
                 );
             }
             say!(
-                "    {} {:.2} -> {:.2} DN",
-                r.gap_metric,
+                "    {} {:.2} -> {:.2}",
+                r.gap_metric.label(),
                 r.gap_before,
                 r.gap_after
             );

@@ -91,8 +91,8 @@ pub fn run(
         }
         let (b, a) = (&result.metrics_before, &result.metrics_after);
         say!(
-            "  gap ({}): {:.2} -> {:.2} DN; geometric alignment residual {:.3} -> {:.3}; in cast shadow {:.2} -> {:.2} DN",
-            result.gap_metric,
+            "  gap ({}): {:.3} -> {:.3}; geometric alignment residual {:.3} -> {:.3}; in cast shadow {:.2} -> {:.2} DN",
+            result.gap_metric.label(),
             result.gap_before,
             result.gap_after,
             b.alignment_residual,

@@ -26,13 +26,14 @@
 //!    no alignment can remove; and the chosen geometric set, rendered, must also lower the
 //!    photometric RMS and the alignment residual, as a real geometric correction does).
 //! 3. **Add**: the named effects join the entry's sensor model (see [`apply`] for writing it into
-//!    a child release), and the measurement is repeated with the new model (before/after).
+//!    a child release), and the measurement is repeated with the new model (before/after); the
+//!    headline is the figure the named effects shrink ([`Figure::headline`]).
 //!
 //! Known limits: `texture-lowpass` cannot bring back the real pattern (it is not in the entry;
 //! see [`texture`]): once added, sample renders carry procedural detail of the missing spectrum
-//! ([`crate::sensor::detail`]), which has zero mean, so the photometric gap (against the
+//! ([`crate::sensor::detail`]), which has zero mean, so the photometric RMS (against the
 //! expected render) stays and the texture's band power against the real albedo's
-//! ([`Metrics::texture_band_log_ratio`]) is what shrinks — on mini seeds 101 and 102 from
+//! ([`Metrics::texture_band_log_ratio`], the run's headline [`Figure`] then) is what shrinks — on mini seeds 101 and 102 from
 //! −0.790 and −0.737 to −0.655 and −0.471, where the same campaigns with a faithful texture
 //! read −0.691 and −0.618 (the detail's spectrum, extrapolated from where the low-passed
 //! texture still shows its signal, overshoots on seed 102); and the smallest level or
@@ -90,7 +91,7 @@ use crate::render::{AlbedoGrid, Geometry, HeightGrid, Light, Scene};
 use crate::sensor::{stored_model, Effect, SensorModel};
 use crate::validate::{campaign_light, entry_geometry};
 
-pub use measure::Metrics;
+pub use measure::{Figure, Metrics};
 use select::{choose, choose_with, subsets, Candidate};
 use views::{load_views, predict, GapView, ImagePair, Prediction};
 
@@ -159,8 +160,8 @@ pub struct GapResult {
     pub entry: String,
     /// The named effects, geometry first.
     pub named: Vec<Named>,
-    /// The headline gap metric's name.
-    pub gap_metric: String,
+    /// The headline figure: the one the named effects are read on ([`Figure::headline`]).
+    pub gap_metric: Figure,
     /// Headline gap with the model before.
     pub gap_before: f64,
     /// Headline gap with the model after.
@@ -1352,13 +1353,14 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
     } else {
         Vec::new()
     };
+    let headline = Figure::headline(&found.iter().map(|n| n.effect.as_str()).collect::<Vec<_>>());
     Ok(GapResult {
         images,
         release_id: view.id.to_hex(),
         entry: entry.to_string(),
-        gap_metric: "photometric_rms_dn".into(),
-        gap_before: metrics_before.photometric_rms_dn,
-        gap_after: metrics_after.photometric_rms_dn,
+        gap_metric: headline,
+        gap_before: headline.of(&metrics_before),
+        gap_after: headline.of(&metrics_after),
         named: found,
         metrics_before,
         metrics_after,

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use super::html::{Cell, Figure, Page};
 use super::plot::{bar_chart, image_strip, line_plot, palette, Axes, BarGroup, Raster, Series};
 use super::{io_err, ReportError};
-use crate::gap::{GapResult, GapViewImages, Metrics};
+use crate::gap::{Figure as GapFigure, GapResult, GapViewImages, Metrics};
 
 fn before_after(
     before: &Metrics,
@@ -139,26 +139,23 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
             Cell::new(format!("{:.3}", f(a))),
         ]
     };
-    let mut rows = vec![
-        row("photometric RMS, DN (headline)", &|m| m.photometric_rms_dn),
-        row("geometric alignment residual", &|m| m.alignment_residual),
-        row(
-            &format!(
-                "photometric RMS in cast shadow of the light, DN ({} px)",
-                b.shadow_pixels
-            ),
-            &|m| m.shadow_rms_dn,
-        ),
-        row("noise variance of the real frames, DN²", &|m| {
-            m.noise_variance_dn2
-        }),
-    ];
-    if b.texture_band_log_ratio.is_some() {
-        rows.push(row(
-            "texture band power / the real albedo's, log10 (with procedural detail)",
-            &|m| m.texture_band_log_ratio.unwrap_or(f64::NAN),
-        ));
-    }
+    let mut rows: Vec<Vec<Cell>> = GapFigure::ALL
+        .iter()
+        .filter(|f| **f != GapFigure::TextureBandDeficit || b.texture_band_log_ratio.is_some())
+        .map(|f| {
+            let mut name = f.label().to_string();
+            if *f == GapFigure::ShadowRmsDn {
+                name = format!("{name} ({} px)", b.shadow_pixels);
+            }
+            if *f == r.gap_metric {
+                name.push_str(" (headline)");
+            }
+            row(&name, &|m| f.of(m))
+        })
+        .collect();
+    rows.push(row("noise variance of the real frames, DN²", &|m| {
+        m.noise_variance_dn2
+    }));
     page.table(&["metric", "before", "after"], &rows);
     let view_rows: Vec<Vec<Cell>> = b
         .views
