@@ -64,7 +64,7 @@
 //! per axis; seed 102: pitch 0.14° off with 4.3 mm of y): the terrain fills only the lower
 //! part of a mini view, where a pitch and a vertical translation look alike at the terrain's
 //! distance. From estec's eight captures a hidden
-//! vignetting of 0.476 came out 0.477 and a pose bias within 0.033° and 0.6 mm per axis
+//! vignetting of 0.476 came out 0.477 and a pose bias within 0.026° and 1.1 mm per axis
 //! (seed 2), a hidden distortion (dk1 −0.0417, dk2 0.0056) came out dk1 −0.0379 ± 0.0003
 //! (displacement at 0.7 of the radius −2.9 %), and nothing hidden named nothing.
 
