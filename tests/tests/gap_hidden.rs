@@ -36,17 +36,17 @@ const NOISE_TOL: f64 = 0.15;
 const EXPOSURE_GAIN_TOL: f64 = 0.10;
 /// Radial displacement of the distortion at 0.7 of the radius, relative: the displacement is
 /// what the images determine; dk1 and dk2 trade off over the terrain's part of the image, and
-/// one radial term is fitted unless held-out data ask for two (seeds 101, 102: −11.8 and
-/// −10.7 %; seed 103, with a hidden dk2 of −0.013 taken into dk1, +34 %).
-const DISTORTION_SHIFT_TOL: f64 = 0.35;
+/// one radial term is fitted unless held-out data ask for two. Seeds 101, 102: −8.1 and −2.3 %
+/// with the stereo pairs in the fit (−11.8 and −10.7 % from the render's samples alone).
+const DISTORTION_SHIFT_TOL: f64 = 0.12;
 /// Shadows' light direction, degrees.
 const SHADOWS_TOL_DEG: f64 = 3.0;
 /// Hidden texture low-pass σ, relative.
 const TEXTURE_TOL: f64 = 0.25;
 /// Pose bias: displacement of a point 1.5 m ahead of the camera (the terrain's distance),
-/// metres. Rotation and translation trade off on mini (seed 102: rotation x 0.40° for 0.03°
+/// metres. Rotation and translation trade off on mini (seed 102: rotation x 0.44° for 0.03°
 /// with 12 mm of y); the displacement they make together at the terrain is what the images
-/// determine, here to 4.5 and 5.6 mm (5.7 next to a vignetting).
+/// determine, here to 4.0 and 6.7 mm (3.7 and 6.4 next to a vignetting).
 const POSE_BIAS_TOL_M: f64 = 0.007;
 /// Tolerances of an effect hidden next to another are this many times wider (except
 /// vignetting's): exposure and the response curve are only jointly identifiable with the
@@ -110,8 +110,9 @@ fn fitted_effect(r: &CaseResult, name: &str) -> Option<Effect> {
     Some(Effect::neutral(name)?.with_params(&values))
 }
 
-/// Parameter checks of one named, hidden effect; violations appended to `bad`.
-fn check_params(r: &CaseResult, truth: &Effect, bad: &mut Vec<String>) {
+/// Parameter checks of one named, hidden effect; every check's figure appended to `seen`, the
+/// violations to `bad`.
+fn check_params(r: &CaseResult, truth: &Effect, seen: &mut Vec<String>, bad: &mut Vec<String>) {
     let name = truth.name();
     let widen = if r.truth.len() > 1 { PAIR_FACTOR } else { 1.0 };
     let Some(fit) = fitted_effect(r, name) else {
@@ -119,8 +120,10 @@ fn check_params(r: &CaseResult, truth: &Effect, bad: &mut Vec<String>) {
     };
     let (t, f) = (truth.params(), fit.params());
     let mut check = |what: &str, ok: bool, detail: String| {
+        let line = format!("{name} {what}: {detail}");
+        seen.push(format!("    {} {line}", if ok { "ok  " } else { "FAIL" }));
         if !ok {
-            bad.push(format!("{name} {what}: {detail}"));
+            bad.push(line);
         }
     };
     match name {
@@ -161,7 +164,7 @@ fn check_params(r: &CaseResult, truth: &Effect, bad: &mut Vec<String>) {
             check(
                 "shift at 0.7",
                 rel(a, b) <= widen * DISTORTION_SHIFT_TOL,
-                format!("{a:.5} for {b:.5}"),
+                format!("{a:.5} for {b:.5} ({:+.1} %)", 100.0 * (a / b - 1.0)),
             );
         }
         "shadows" => {
@@ -206,9 +209,11 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
             if !matrix.add(&label, &hidden, &named) {
                 case_bad.push(format!("named {named:?}, hidden {hidden:?}"));
             }
+            let mut seen = Vec::new();
             for t in &r.truth {
-                check_params(&r, t, &mut case_bad);
+                check_params(&r, t, &mut seen, &mut case_bad);
             }
+            lines.extend(seen);
             check_shrink(&r, &hidden, &mut case_bad);
             bad.extend(
                 case_bad
