@@ -206,7 +206,7 @@ pub fn prepare(
 /// too, as a residual between the two real images with weight 1. The point is moved through
 /// the ground frame with the renders' `poses` (`ground_from_camera`) and kept if the other
 /// render's `depth` there agrees within [`super::overlap::DEPTH_TOLERANCE`], inside its eroded
-/// terrain `mask` and [`EDGE_MARGIN`] from its border; each pair of views once.
+/// terrain `mask` and twice the border taper from its border; each pair of views once.
 ///
 /// The two real images of one capture show the same albedo under the same light at the same
 /// instant, so where the geometry is right they agree whatever the entry's texture gets wrong:
