@@ -18,7 +18,10 @@
 //! point from the render's depth). The pairs alone see a distortion only through the
 //! difference of its displacement at the two image positions and a pose bias only through the
 //! depth it changes, so the render's samples stay in the fit; the pairs join them weighted by
-//! the inverse of their residual variance (see the gap module), which lets them steer.
+//! the inverse of their residual variance (see the gap module), which lets them steer. They
+//! join a distortion's fit only, for now: the sensor model applies a pose bias in each
+//! camera's own frame rather than about the rig, a sub-pixel inconsistency between the two
+//! cameras that the pairs see.
 //!
 //! The fit is Levenberg–Marquardt over all views jointly (the effects are fixed to the camera,
 //! so they are the same in every capture), coarse to fine (band σ 3–12 px, then 1.5–8 px), the

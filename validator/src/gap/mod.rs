@@ -23,10 +23,11 @@
 //!    scored on held-out captures, and the subset is chosen jointly ([`select`]); an effect is
 //!    named only if it explains at least a set share of the stage's held-out error (geometry:
 //!    0.3 of that share and at least 0.04 band-pass units, because most of its error is texture
-//!    no alignment can remove; the fitted set must also bring each capture's two real images
+//!    no alignment can remove; a distortion must also bring each capture's two real images
 //!    closer through the terrain's geometry, which the entry's texture does not enter
-//!    ([`geometry::stereo_pairs`]), and, rendered, lower the photometric RMS and the
-//!    alignment residual, as a real geometric correction does).
+//!    ([`geometry::stereo_pairs`], which then join its fit); and the chosen set, rendered,
+//!    must lower the photometric RMS and the alignment residual, as a real geometric
+//!    correction does).
 //! 3. **Add**: the named effects join the entry's sensor model (see [`apply`] for writing it into
 //!    a child release), and the measurement is repeated with the new model (before/after); the
 //!    headline is the figure the named effects shrink ([`Figure::headline`]).
@@ -58,9 +59,10 @@
 //! these campaigns is tilted by 0.13–0.19° against the ground frame (5 markers over 2 m), yet
 //! with that error removed by the truth (render samples alone) the test's seeds still read
 //! −12 and −4 % in dk1, and the pose bias came out no closer. And a pose bias's rotation and
-//! translation trade off (pitch against the vertical translation: seed 102, 0.44° for 0.03°
-//! with 12 mm of y) while the displacement they make together at 1.5 m is within 4.0 and
-//! 6.7 mm (seeds 101, 102); the test `gap_hidden`
+//! translation trade off (pitch against the vertical translation: seed 102, 0.40° for 0.03°
+//! with 12 mm of y) while the displacement they make together at 1.5 m is within 4.5 and
+//! 5.6 mm (seeds 101, 102; the stereo pairs do not enter a pose bias's fit yet, see
+//! `STEREO_WITNESS`); the test `gap_hidden`
 //! asserts these measured tolerances. Six capture locations (`corpus generate --captures 6`;
 //! measured with the render's samples alone) narrow the pose bias's trade-off without removing it (seed 101: within 0.10° and 3.4 mm
 //! per axis; seed 102: pitch 0.14° off with 4.3 mm of y): the terrain fills only the lower
@@ -448,6 +450,14 @@ fn geometry_levels(ctx: &Ctx<'_>, preds: &[Prediction]) -> Levels {
         .collect()
 }
 
+/// The geometric sets whose fit the stereo pairs join (and must confirm). Not a pose bias yet:
+/// the sensor model applies a bias to every camera in that camera's own frame, while a bias of
+/// the rig moves the right camera about the left one's centre; the difference (≈ 0.9 mm for
+/// 0.5° over the 10 cm baseline, 0.24 px at 1.5 m) is invisible to the render's samples but
+/// not to the pairs, whose floor is 0.015: they pulled the fitted roll towards zero (mini seed
+/// 102: −0.08° for −0.30°, seed 106: −0.14° for −0.33°; −0.26° and −0.31° without them).
+const STEREO_WITNESS: [&[&str]; 1] = [&["distortion"]];
+
 /// The stereo pairs ([`geometry::stereo_pairs`]) of every level of `levels`, which were made
 /// from `preds`, the renders of `model`.
 fn stereo_levels(
@@ -589,45 +599,42 @@ fn geometry_stage(
     // exactly; refitting it from the corrected render swung it back and forth (seed 101: dk1
     // −0.046, −0.024, −0.044 in three rounds).
     let render_fit = fit_levels(&levels, &set, terms, &|_, _| true);
-    // The stereo witness: what the render's residuals want must bring each capture's two real
-    // images closer through the terrain's geometry as well. A set fitted to the entry's texture
-    // does not: with a texture low-pass hidden (mini seed 102) a distortion raised the stereo
-    // residual from 0.015 to 0.135, where hidden effects lowered it (distortion 0.133 → 0.013
-    // and 0.063 → 0.018, pose bias 0.046 → 0.021 and 0.014 → 0.012; seeds 101, 102). The
-    // final fit then joins the pairs to the render's samples, each pair weighted by the ratio
-    // of the two residuals' standard deviations at the render's fit (inverse-variance
-    // weighting; 7–9 on mini), so they steer the parameters where the texture biases the
-    // render's samples.
-    let stereo = stereo_levels(ctx, model, &preds, &levels);
-    let stereo_mse = |p: &[f64; 8]| {
-        stereo
-            .last()
-            .map_or(0.0, |(imgs, obs)| geometry::mse(obs, imgs, p))
-    };
-    let (stereo_before, stereo_at_fit) = (stereo_mse(&[0.0; 8]), stereo_mse(&render_fit.params));
-    if stereo_at_fit >= stereo_before {
-        return scored(&cands);
+    // The stereo witness (a distortion alone; see `STEREO_WITNESS`) joins the render's samples,
+    // each pair weighted by the ratio of the two residuals' standard deviations at the
+    // render's own fit (inverse-variance weighting; 8–9 on mini), so the pairs steer the
+    // parameters where the texture biases the render's samples. And the correction must bring
+    // each capture's two real images closer through the terrain's geometry. One fitted to the
+    // entry's texture does not: with a texture low-pass hidden (mini seed 102) a distortion
+    // fitted to the render raised the stereo residual from 0.015 to 0.135, where hidden
+    // distortions lowered it (0.133 → 0.013 and 0.063 → 0.018 on seeds 101, 102).
+    let mut joint = levels.clone();
+    let mut f = render_fit.clone();
+    let mut stereo_figures = None;
+    if STEREO_WITNESS.iter().any(|w| set == *w) {
+        let stereo = stereo_levels(ctx, model, &preds, &levels);
+        let stereo_mse = |p: &[f64; 8]| {
+            stereo
+                .last()
+                .map_or(0.0, |(imgs, obs)| geometry::mse(obs, imgs, p))
+        };
+        let weight = (render_fit.mse / stereo_mse(&render_fit.params).max(1e-9)).sqrt();
+        joint = joined(&levels, &stereo, weight);
+        f = fit_levels(&joint, &set, terms, &|_, _| true);
+        let (before, after) = (stereo_mse(&[0.0; 8]), stereo_mse(&f.params));
+        if after >= before {
+            return scored(&cands);
+        }
+        stereo_figures = Some((before, after, weight));
     }
-    let weight = (render_fit.mse / stereo_at_fit.max(1e-9)).sqrt();
-    let joint = joined(&levels, &stereo, weight);
-    let f = fit_levels(&joint, &set, terms, &|_, _| true);
     let mut current = with_geometry(model, &set, &f.params);
     let mut std_err_fit = f.std_err;
     if set.contains(&"pose-bias") {
         let seen = ctx.predict_all(&current);
-        let seen_levels = geometry_levels(ctx, &seen);
-        let seen_stereo = stereo_levels(ctx, &current, &seen, &seen_levels);
-        let refine = fit_levels(
-            &joined(&seen_levels, &seen_stereo, weight),
-            &set,
-            terms,
-            &|_, _| true,
-        );
+        let refine = fit_levels(&geometry_levels(ctx, &seen), &set, terms, &|_, _| true);
         current = with_geometry(&current, &set, &refine.params);
         std_err_fit = refine.std_err;
     }
 
-    let stereo_after = stereo_mse(&f.params);
     let jack = jackknife(ctx.n_folds, &|hold| {
         let p = fit_levels(&joint, &set, terms, &|o, imgs| imgs[o.view].fold != hold).params;
         let mut v = p.to_vec();
@@ -661,6 +668,10 @@ fn geometry_stage(
     // The RMS is taken after a gain and offset per view (see `photometric_rms_pair`).
     let corrected = ctx.predict_all(&current);
     let (rms_before, rms_after) = photometric_rms_pair(ctx, &preds, &corrected);
+    eprintln!(
+        "DBG rms {rms_before:.4} -> {rms_after:.4} final {:?}",
+        f.params
+    );
     if rms_after >= rms_before {
         return scored(&cands);
     }
@@ -693,8 +704,12 @@ fn geometry_stage(
             *share,
             "geometry",
             format!(
-                "dense alignment: held-out band-pass residual {:.4} with no effect, {:.4} with the chosen set; stereo residual {:.4} → {:.4} (weight {:.1})",
-                base_err, cands[choice.index].cv_error, stereo_before, stereo_after, weight
+                "dense alignment: held-out band-pass residual {:.4} with no effect, {:.4} with the chosen set{}",
+                base_err,
+                cands[choice.index].cv_error,
+                stereo_figures.map_or(String::new(), |(b, a, w)| format!(
+                    "; stereo residual {b:.4} → {a:.4} (pairs weighted {w:.1})"
+                ))
             ),
         ));
     }
