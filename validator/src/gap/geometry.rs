@@ -491,60 +491,19 @@ mod tests {
         assert_eq!(img[15 * w + 20], 1.0);
     }
 
-    /// A textured plane 2 m ahead, seen by a camera whose real k1 is `dk1` off its calibration.
-    fn plane_views(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>) {
-        let (w, h) = (320usize, 256usize);
-        let calibrated = CameraModel::pinhole(w as u32, h as u32, 300.0, 300.0, 160.0, 128.0);
-        let mut real_cam = calibrated.clone();
-        real_cam.distortion.k1 += dk1;
-        let texture = |x: f64, y: f64| {
-            (x * 23.0).sin() + (y * 31.0 + 0.4).sin() + 0.7 * ((x + y) * 41.0).cos()
-        };
-        let image = |cam: &CameraModel| -> Vec<f32> {
-            (0..w * h)
-                .map(|i| {
-                    let (xn, yn) = cam.unproject((i % w) as f64, (i / w) as f64);
-                    (100.0 + 20.0 * texture(2.0 * xn, 2.0 * yn)) as f32
-                })
-                .collect()
-        };
-        let mask = vec![true; w * h];
-        let depth = vec![2.0f32; w * h];
-        let (render, real) = (image(&calibrated), image(&real_cam));
-        let (img, obs) = prepare(
-            0,
-            0,
-            &render,
-            &real,
-            &mask,
-            &depth,
-            &calibrated,
-            w,
-            h,
-            LEVELS[1],
-        );
-        (vec![img], obs)
-    }
+    const PLANE: (usize, usize) = (320, 256);
 
-    /// A stereo head (right camera 10 cm along +x) 2 m in front of a textured plane, both
-    /// cameras truly `dk1` off their calibration: the views, their render samples and their
-    /// stereo pairs.
-    fn stereo_plane(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
-        let (w, h) = (320usize, 256usize);
+    /// A textured plane 2 m ahead of the ground frame's origin (z = 2), seen by cameras at
+    /// `poses` (`ground_from_camera`) whose real k1 is `dk1` off their calibration: the views
+    /// and their render samples.
+    fn plane_fixture(dk1: f64, poses: &[Pose]) -> (Vec<ViewImages>, Vec<Observation>) {
+        let (w, h) = PLANE;
         let calibrated = CameraModel::pinhole(w as u32, h as u32, 300.0, 300.0, 160.0, 128.0);
         let mut real_cam = calibrated.clone();
         real_cam.distortion.k1 += dk1;
         let texture = |x: f64, y: f64| {
             (x * 23.0).sin() + (y * 31.0 + 0.4).sin() + 0.7 * ((x + y) * 41.0).cos()
         };
-        let poses = [
-            Pose::IDENTITY,
-            Pose {
-                translation_m: [0.1, 0.0, 0.0],
-                ..Pose::IDENTITY
-            },
-        ];
-        // The plane z = 2 in the ground (= left camera) frame; a pixel's ground point.
         let image = |cam: &CameraModel, pose: &Pose| -> Vec<f32> {
             (0..w * h)
                 .map(|i| {
@@ -574,6 +533,29 @@ mod tests {
             views.push(img);
             obs.extend(o);
         }
+        (views, obs)
+    }
+
+    /// One camera at the origin.
+    fn plane_views(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>) {
+        plane_fixture(dk1, &[Pose::IDENTITY])
+    }
+
+    /// A stereo head (right camera 10 cm along +x): the views, their render samples and their
+    /// stereo pairs.
+    fn stereo_plane(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
+        let poses = [
+            Pose::IDENTITY,
+            Pose {
+                translation_m: [0.1, 0.0, 0.0],
+                ..Pose::IDENTITY
+            },
+        ];
+        let (views, obs) = plane_fixture(dk1, &poses);
+        let (mask, depth) = (
+            vec![true; PLANE.0 * PLANE.1],
+            vec![2.0f32; PLANE.0 * PLANE.1],
+        );
         let pairs = stereo_pairs(&obs, &views, &poses, &[&depth, &depth], &[&mask, &mask]);
         (views, obs, pairs)
     }
