@@ -64,8 +64,9 @@
 //! 5.6 mm (seeds 101, 102; the stereo pairs do not enter a pose bias's fit yet, see
 //! `STEREO_WITNESS`); the test `gap_hidden`
 //! asserts these measured tolerances. Six capture locations (`corpus generate --captures 6`;
-//! measured with the render's samples alone) narrow the pose bias's trade-off without removing it (seed 101: within 0.10° and 3.4 mm
-//! per axis; seed 102: pitch 0.14° off with 4.3 mm of y): the terrain fills only the lower
+//! measured with the render's samples alone) narrow the pose bias's trade-off without
+//! removing it (seed 101: within 0.10° and 3.4 mm per axis; seed 102: pitch 0.14° off with
+//! 4.3 mm of y): the terrain fills only the lower
 //! part of a mini view, where a pitch and a vertical translation look alike at the terrain's
 //! distance. From estec's eight captures a hidden
 //! vignetting of 0.476 came out 0.477 and a pose bias within 0.026° and 1.1 mm per axis
@@ -600,17 +601,18 @@ fn geometry_stage(
     // 3.8 mm with it). A distortion only remaps the same rays, which the samples model
     // exactly; refitting it from the corrected render swung it back and forth (seed 101: dk1
     // −0.046, −0.024, −0.044 in three rounds).
-    let render_fit = fit_levels(&levels, &set, terms, &|_, _| true);
-    // The stereo witness (a distortion alone; see `STEREO_WITNESS`) joins the render's samples,
-    // each pair weighted by the ratio of the two residuals' standard deviations at the
-    // render's own fit (inverse-variance weighting; 8–9 on mini), so the pairs steer the
+    //
+    // The render's own fit comes first. The stereo witness (a distortion alone; see
+    // `STEREO_WITNESS`) then joins the render's samples, each pair weighted by the ratio of
+    // the two residuals' standard deviations at the render's own fit (inverse-variance
+    // weighting; 8–9 on mini), so the pairs steer the
     // parameters where the texture biases the render's samples. And the correction must bring
     // each capture's two real images closer through the terrain's geometry. One fitted to the
     // entry's texture does not: with a texture low-pass hidden (mini seed 102) a distortion
     // fitted to the render raised the stereo residual from 0.015 to 0.135, where hidden
     // distortions lowered it (0.133 → 0.013 and 0.063 → 0.018 on seeds 101, 102).
-    let mut joint = levels.clone();
-    let mut f = render_fit.clone();
+    let mut joint = None;
+    let mut f = fit_levels(&levels, &set, terms, &|_, _| true);
     let mut stereo_figures = None;
     if STEREO_WITNESS.iter().any(|w| set == *w) {
         let stereo = stereo_levels(ctx, model, &preds, &levels);
@@ -619,9 +621,10 @@ fn geometry_stage(
                 .last()
                 .map_or(0.0, |(imgs, obs)| geometry::mse(obs, imgs, p))
         };
-        let weight = (render_fit.mse / stereo_mse(&render_fit.params).max(1e-9)).sqrt();
-        joint = joined(&levels, &stereo, weight);
-        f = fit_levels(&joint, &set, terms, &|_, _| true);
+        let weight = (f.mse / stereo_mse(&f.params).max(1e-9)).sqrt();
+        let both = joined(&levels, &stereo, weight);
+        f = fit_levels(&both, &set, terms, &|_, _| true);
+        joint = Some(both);
         let (before, after) = (stereo_mse(&[0.0; 8]), stereo_mse(&f.params));
         if after >= before {
             return scored(&cands);
@@ -637,8 +640,9 @@ fn geometry_stage(
         std_err_fit = refine.std_err;
     }
 
+    let joint = joint.as_ref().unwrap_or(&levels);
     let jack = jackknife(ctx.n_folds, &|hold| {
-        let p = fit_levels(&joint, &set, terms, &|o, imgs| imgs[o.view].fold != hold).params;
+        let p = fit_levels(joint, &set, terms, &|o, imgs| imgs[o.view].fold != hold).params;
         let mut v = p.to_vec();
         v.push(radial_shift(&p));
         v
@@ -670,10 +674,6 @@ fn geometry_stage(
     // The RMS is taken after a gain and offset per view (see `photometric_rms_pair`).
     let corrected = ctx.predict_all(&current);
     let (rms_before, rms_after) = photometric_rms_pair(ctx, &preds, &corrected);
-    eprintln!(
-        "DBG rms {rms_before:.4} -> {rms_after:.4} final {:?}",
-        f.params
-    );
     if rms_after >= rms_before {
         return scored(&cands);
     }
