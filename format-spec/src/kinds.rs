@@ -201,6 +201,20 @@ pub struct RigMeta {
     pub rig_from_left: Pose,
 }
 
+impl RigMeta {
+    /// `rig_from_camera` of the camera entry `camera` (`cameras/navcam_right`), `None` when
+    /// the rig does not hold it.
+    pub fn rig_from_camera(&self, camera: &str) -> Option<Pose> {
+        if camera == self.left {
+            Some(self.rig_from_left)
+        } else if camera == self.right {
+            Some(self.rig_from_left.compose(&self.right_from_left.inverse()))
+        } else {
+            None
+        }
+    }
+}
+
 /// The JSON index written next to a captures MCAP.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CapturesIndex {
@@ -246,6 +260,34 @@ pub fn capture_topic(camera: &str, what: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rig_places_its_cameras() {
+        let right_from_left = Pose {
+            translation_m: [-0.1, 0.0, 0.0],
+            rotation_xyzw: crate::frames::quat_from_axis_angle([0.0, 1.0, 0.0], 0.004),
+        };
+        let rig = RigMeta {
+            left: "cameras/navcam_left".into(),
+            right: "cameras/navcam_right".into(),
+            right_from_left,
+            rig_from_left: Pose {
+                translation_m: [0.0, 0.05, 0.0],
+                ..Pose::IDENTITY
+            },
+        };
+        let left = rig.rig_from_camera("cameras/navcam_left").unwrap();
+        let right = rig.rig_from_camera("cameras/navcam_right").unwrap();
+        assert_eq!(left, rig.rig_from_left);
+        // The right camera's centre is the baseline away from the left one's, in the rig.
+        let c = right.transform_point([0.0; 3]);
+        let expected = [0.1 * 0.004f64.cos(), 0.05, 0.1 * 0.004f64.sin()];
+        assert!((0..3).all(|k| (c[k] - expected[k]).abs() < 1e-6), "{c:?}");
+        // right_from_left = right_from_rig * rig_from_left.
+        let back = right.inverse().compose(&left);
+        assert!(back.distance_to_m(&right_from_left) < 1e-12);
+        assert_eq!(rig.rig_from_camera("cameras/hazcam"), None);
+    }
 
     #[test]
     fn heightfield_geometry() {

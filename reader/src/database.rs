@@ -9,6 +9,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use regolith_format::camera_model::CameraModel;
+use regolith_format::frames::Pose;
 use regolith_format::kinds::{self, RigMeta};
 use regolith_format::manifest::{check_name, MANIFEST_MEDIA_TYPE};
 use regolith_format::{Entry, ObjectId, Release};
@@ -315,6 +316,17 @@ impl ReleaseView {
     pub fn rig(&self, entry: &str) -> Result<RigMeta> {
         self.entry_of_kind(entry, kinds::RIG)?;
         self.read_json(entry, kinds::roles::CALIBRATION, "rig calibration")
+    }
+
+    /// Where the camera entry `camera` sits on the release's stereo rig (the `rig` entries
+    /// that name it; identity when none does): the frame a `pose-bias` is about.
+    pub fn rig_from_camera(&self, camera: &str) -> Result<Pose> {
+        for e in self.entries().iter().filter(|e| e.kind == kinds::RIG) {
+            if let Some(p) = self.rig(&e.name)?.rig_from_camera(camera) {
+                return Ok(p);
+            }
+        }
+        Ok(Pose::IDENTITY)
     }
 
     /// A report's JSON body.

@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use regolith_format::frames::Pose;
 use regolith_tests::gap_case::{cases, figures, run_case, CaseResult, Confusion};
 use regolith_validator::gap::Figure;
-use regolith_validator::sensor::{distortion_shift, Effect, SensorModel};
+use regolith_validator::sensor::{distortion_shift, Effect, Placement, SensorModel};
 
 const SEEDS: [u64; 2] = [101, 102];
 
@@ -100,7 +100,9 @@ fn rel(fitted: f64, truth: f64) -> f64 {
 /// Displacement (m) a pose bias makes at a point 1.5 m along the optical axis.
 fn bias_displacement(e: &Effect) -> [f64; 3] {
     let model = SensorModel { effects: vec![*e] };
-    let p = model.pose(&Pose::IDENTITY).transform_point([0.0, 0.0, 1.5]);
+    let p = model
+        .pose(&Placement::lone(Pose::IDENTITY))
+        .transform_point([0.0, 0.0, 1.5]);
     [p[0], p[1], p[2] - 1.5]
 }
 

@@ -36,7 +36,7 @@ use crate::metrics::repeatability::{Repeatability, EPSILONS};
 use crate::metrics::spectrum::{log_ratio, radial_spectrum, RadialSpectrum};
 use crate::metrics::stats::{mean_ci, Interval};
 use crate::render::{AlbedoGrid, Geometry, HeightGrid, Light, Scene};
-use crate::sensor::{stored_model, SensorModel};
+use crate::sensor::{stored_model, Placement, SensorModel};
 
 /// Version of the validator recorded in certificates.
 pub const VALIDATOR_VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -466,14 +466,11 @@ pub fn view_images(
         frame(0).ok_or_else(|| decode_err(entry, format!("no raw frame of {capture} {camera}")))?;
     let calibrated = view.camera(&format!("cameras/{camera}"))?;
     let seed = images.iter().position(|i| std::ptr::eq(i, a)).unwrap_or(0) as u64;
-    let r = sensor.render(
-        scene,
-        light,
-        &calibrated,
-        &a.ground_from_camera,
-        2,
-        Some(seed),
-    );
+    let at = Placement {
+        ground_from_camera: a.ground_from_camera,
+        rig_from_camera: view.rig_from_camera(&format!("cameras/{camera}"))?,
+    };
+    let r = sensor.render(scene, light, &calibrated, &at, 2, Some(seed));
     let rendered = r.rendered;
     let dn: Vec<f32> = r.dn.iter().map(|v| v / 255.0).collect();
     let real_a = contrast::stretch(&grey(&a.data, entry)?);

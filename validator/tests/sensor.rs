@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
 use regolith_validator::render::{AlbedoGrid, RenderOptions, View};
-use regolith_validator::sensor::{quantise_u8, Effect, SensorModel};
+use regolith_validator::sensor::{quantise_u8, Effect, Placement, SensorModel};
 
 fn model(effects: Vec<Effect>) -> SensorModel {
     SensorModel { effects }
@@ -185,7 +185,8 @@ fn neutral_effects_change_nothing_and_samples_stay_in_range() {
         translation_m: [1.0, 2.0, 3.0],
         rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
     };
-    assert!(m.pose(&pose).distance_to_m(&pose) < 1e-12 && m.pose(&pose).angle_to_deg(&pose) < 1e-9);
+    let at = Placement::lone(pose);
+    assert!(m.pose(&at).distance_to_m(&pose) < 1e-12 && m.pose(&at).angle_to_deg(&pose) < 1e-9);
 
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     for name in Effect::NAMES {
@@ -231,7 +232,7 @@ fn geometric_render_and_texture_effects() {
 
     // A camera looking down: camera x = ground +x, camera y = ground -y.
     let view = View::look_at(cam(64, 48), [1.0, 2.0, 3.0], [1.0, 2.0, 0.0]);
-    let biased = m.pose(&view.ground_from_camera);
+    let biased = m.pose(&Placement::lone(view.ground_from_camera));
     let moved: Vec<f64> = (0..3)
         .map(|k| biased.translation_m[k] - view.ground_from_camera.translation_m[k])
         .collect();
@@ -243,6 +244,23 @@ fn geometric_render_and_texture_effects() {
     let right = biased.rotate([1.0, 0.0, 0.0]);
     let old_down = view.ground_from_camera.rotate([0.0, 1.0, 0.0]);
     assert!((0..3).all(|k| (right[k] - old_down[k]).abs() < 1e-9));
+
+    // The bias moves the rig: a second camera 10 cm to the right and turned 2° follows the
+    // biased reference camera rigidly (a bias in its own frame would swing it 10 cm around).
+    let rig_from_right = Pose {
+        translation_m: [0.1, 0.0, 0.0],
+        rotation_xyzw: regolith_format::frames::quat_from_axis_angle([0.0, 1.0, 0.0], 0.035),
+    };
+    let right_cam = m.pose(&Placement {
+        ground_from_camera: view.ground_from_camera.compose(&rig_from_right),
+        rig_from_camera: rig_from_right,
+    });
+    let rigid = biased.compose(&rig_from_right);
+    assert!(right_cam.distance_to_m(&rigid) < 1e-9 && right_cam.angle_to_deg(&rigid) < 1e-7);
+    let own_frame = m.pose(&Placement::lone(
+        view.ground_from_camera.compose(&rig_from_right),
+    ));
+    assert!(own_frame.distance_to_m(&rigid) > 0.1);
 
     let (opts, light) = m.render_options(&RenderOptions::default());
     let light = light.unwrap();

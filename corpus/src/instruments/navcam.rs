@@ -20,7 +20,7 @@ use rand_chacha::ChaCha8Rng;
 use regolith_format::camera_model::{CameraModel, Distortion};
 use regolith_format::frames::{quat_from_axis_angle, Pose};
 use regolith_validator::render::{HeightfieldTracer, Light, RenderOptions, Scene, View};
-use regolith_validator::sensor::{quantise_u8, SensorModel};
+use regolith_validator::sensor::{quantise_u8, Placement, SensorModel};
 
 use super::riegl::marker_visible;
 use crate::presets::PresetConfig;
@@ -205,7 +205,7 @@ pub fn render_frames(
     supersample: u32,
     noise_seed: u64,
 ) -> Frames {
-    let left_pose = model.pose(&capture.ground_from_rig);
+    let left_pose = model.pose(&Placement::lone(capture.ground_from_rig));
     let right_pose = left_pose.compose(&head.right_from_left.inverse());
     let cameras = [model.camera(&head.left), model.camera(&head.right)];
     let (opts, _) = model.render_options(&RenderOptions {

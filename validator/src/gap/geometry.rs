@@ -3,8 +3,9 @@
 //!
 //! Every sampled terrain pixel of a render is a 3-D point (its depth, unprojected through the
 //! camera the render used). A candidate geometry — increments of the camera's radial terms
-//! (`dk1`, `dk2`) and of the camera-to-rig transform (translation, metres; rotations about x,
-//! y, z, degrees, composed as in [`SensorModel::pose`]) — reprojects the point into the real
+//! (`dk1`, `dk2`) and of the camera-to-rig transform (translation, metres; rotations about the
+//! rig's x, y, z, degrees, composed as in [`SensorModel::pose`], each view at its place on the
+//! rig) — reprojects the point into the real
 //! image; the residual is the real image there minus the render here. Both images are
 //! band-passed (difference of Gaussians) and scaled to unit variance over the terrain first, so
 //! exposure, vignetting and the response curve do not enter, and the pixel-scale texture the
@@ -18,10 +19,9 @@
 //! point from the render's depth). The pairs alone see a distortion only through the
 //! difference of its displacement at the two image positions and a pose bias only through the
 //! depth it changes, so the render's samples stay in the fit; the pairs join them weighted by
-//! the inverse of their residual variance (see the gap module), which lets them steer. They
-//! join a distortion's fit only, for now: the sensor model applies a pose bias in each
-//! camera's own frame rather than about the rig, a sub-pixel inconsistency between the two
-//! cameras that the pairs see.
+//! the inverse of their residual variance (see the gap module), which lets them steer. A pose
+//! bias moves the rig, so each view's bias is the rig's conjugated by the view's place on it
+//! (`rig_from_camera`): the two cameras of a capture move together, as the pairs see them.
 //!
 //! The fit is Levenberg–Marquardt over all views jointly (the effects are fixed to the camera,
 //! so they are the same in every capture), coarse to fine (band σ 3–12 px, then 1.5–8 px), the
@@ -44,7 +44,7 @@ use regolith_format::frames::Pose;
 
 use super::lsq::{solve, Problem};
 use super::photometry::erode;
-use crate::sensor::{gaussian_blur, Effect, SensorModel};
+use crate::sensor::{gaussian_blur, Effect, Placement, SensorModel};
 
 /// Band-pass levels, coarse to fine: Gaussian σ pairs, px.
 pub const LEVELS: [[f64; 2]; 2] = [[3.0, 12.0], [1.5, 8.0]];
@@ -55,6 +55,8 @@ const STRIDE: usize = 3;
 pub struct ViewImages {
     /// The render's camera (calibration + the current model's distortion).
     pub camera: CameraModel,
+    /// The camera's place on the rig that a pose bias moves.
+    pub rig_from_camera: Pose,
     /// Fold of the view (its capture).
     pub fold: usize,
     /// Width.
@@ -156,7 +158,7 @@ fn taper_border(img: &mut [f32], w: usize, h: usize) {
 const EDGE_MARGIN: f64 = 2.0 * BORDER_RAMP;
 
 /// The images and observations of one view at band `band`: `render` and `real` in DN, the
-/// render's `mask`, `depth` and `camera`.
+/// render's `mask`, `depth` and `camera`, which sits at `rig_from_camera` on its rig.
 #[allow(clippy::too_many_arguments)]
 pub fn prepare(
     view: usize,
@@ -166,6 +168,7 @@ pub fn prepare(
     mask: &[bool],
     depth: &[f32],
     camera: &CameraModel,
+    rig_from_camera: Pose,
     w: usize,
     h: usize,
     band: [f64; 2],
@@ -196,6 +199,7 @@ pub fn prepare(
     (
         ViewImages {
             camera: camera.clone(),
+            rig_from_camera,
             fold,
             width: w,
             height: h,
@@ -370,10 +374,19 @@ pub fn residuals(obs: &[Observation], views: &[ViewImages], p: &[f64; 8], out: &
     let (dist, bias) = effects_of(p);
     let bias = SensorModel {
         effects: vec![bias],
-    }
-    .pose(&Pose::IDENTITY)
-    .inverse()
-    .matrix();
+    };
+    // Render-camera into true-camera coordinates, per view (the bias moves the rig).
+    let moved: Vec<_> = views
+        .iter()
+        .map(|v| {
+            bias.pose(&Placement {
+                ground_from_camera: Pose::IDENTITY,
+                rig_from_camera: v.rig_from_camera,
+            })
+            .inverse()
+            .matrix()
+        })
+        .collect();
     let dmodel = SensorModel {
         effects: vec![dist],
     };
@@ -381,7 +394,7 @@ pub fn residuals(obs: &[Observation], views: &[ViewImages], p: &[f64; 8], out: &
     let real_at = |view: usize, point: [f64; 3]| {
         let v = &views[view];
         cams[view]
-            .project(bias.apply(point))
+            .project(moved[view].apply(point))
             .and_then(|q| bicubic(&v.real, v.width, v.height, q[0], q[1]))
             .unwrap_or(0.0)
     };
@@ -493,31 +506,43 @@ mod tests {
 
     const PLANE: (usize, usize) = (320, 256);
 
-    /// A textured plane 2 m ahead of the ground frame's origin (z = 2), seen by cameras at
-    /// `poses` (`ground_from_camera`) whose real k1 is `dk1` off their calibration: the views
-    /// and their render samples.
-    fn plane_fixture(dk1: f64, poses: &[Pose]) -> (Vec<ViewImages>, Vec<Observation>) {
+    /// A textured plane 2 m ahead of the ground frame's origin (z = 2), seen by cameras placed
+    /// at `at` (looking along +z) whose real k1 is `dk1` off their calibration and whose rig
+    /// truly has the pose bias of the parameters `bias` ([`effects_of`]): the views and their
+    /// render samples.
+    fn plane_fixture(
+        dk1: f64,
+        bias: &[f64; 8],
+        at: &[Placement],
+    ) -> (Vec<ViewImages>, Vec<Observation>) {
         let (w, h) = PLANE;
         let calibrated = CameraModel::pinhole(w as u32, h as u32, 300.0, 300.0, 160.0, 128.0);
         let mut real_cam = calibrated.clone();
         real_cam.distortion.k1 += dk1;
+        let bias = SensorModel {
+            effects: vec![effects_of(bias).1],
+        };
         let texture = |x: f64, y: f64| {
             (x * 23.0).sin() + (y * 31.0 + 0.4).sin() + 0.7 * ((x + y) * 41.0).cos()
         };
+        // The plane z = 2 through the pixel's ray.
         let image = |cam: &CameraModel, pose: &Pose| -> Vec<f32> {
             (0..w * h)
                 .map(|i| {
                     let (xn, yn) = cam.unproject((i % w) as f64, (i / w) as f64);
-                    let g = pose.transform_point([2.0 * xn, 2.0 * yn, 2.0]);
-                    (100.0 + 20.0 * texture(g[0], g[1])) as f32
+                    let o = pose.translation_m;
+                    let d = pose.rotate([xn, yn, 1.0]);
+                    let t = (2.0 - o[2]) / d[2];
+                    (100.0 + 20.0 * texture(o[0] + t * d[0], o[1] + t * d[1])) as f32
                 })
                 .collect()
         };
         let (mask, depth) = (vec![true; w * h], vec![2.0f32; w * h]);
         let mut views = Vec::new();
         let mut obs = Vec::new();
-        for (i, pose) in poses.iter().enumerate() {
-            let (render, real) = (image(&calibrated, pose), image(&real_cam, pose));
+        for (i, a) in at.iter().enumerate() {
+            let render = image(&calibrated, &a.ground_from_camera);
+            let real = image(&real_cam, &bias.pose(a));
             let (img, o) = prepare(
                 i,
                 0,
@@ -526,6 +551,7 @@ mod tests {
                 &mask,
                 &depth,
                 &calibrated,
+                a.rig_from_camera,
                 w,
                 h,
                 LEVELS[1],
@@ -538,26 +564,72 @@ mod tests {
 
     /// One camera at the origin.
     fn plane_views(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>) {
-        plane_fixture(dk1, &[Pose::IDENTITY])
+        plane_fixture(dk1, &[0.0; 8], &[Placement::lone(Pose::IDENTITY)])
     }
 
-    /// A stereo head (right camera 10 cm along +x): the views, their render samples and their
-    /// stereo pairs.
-    fn stereo_plane(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
-        let poses = [
-            Pose::IDENTITY,
-            Pose {
-                translation_m: [0.1, 0.0, 0.0],
-                ..Pose::IDENTITY
+    /// The stereo head: the left camera at the origin is the rig, the right one sits 10 cm
+    /// along its +x.
+    fn head() -> [Placement; 2] {
+        let right = Pose {
+            translation_m: [0.1, 0.0, 0.0],
+            ..Pose::IDENTITY
+        };
+        [
+            Placement::lone(Pose::IDENTITY),
+            Placement {
+                ground_from_camera: right,
+                rig_from_camera: right,
             },
-        ];
-        let (views, obs) = plane_fixture(dk1, &poses);
+        ]
+    }
+
+    /// The views of `at`, their render samples and their stereo pairs.
+    fn stereo_fixture(
+        dk1: f64,
+        bias: &[f64; 8],
+        at: &[Placement],
+    ) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
+        let (views, obs) = plane_fixture(dk1, bias, at);
+        let poses: Vec<Pose> = at.iter().map(|a| a.ground_from_camera).collect();
         let (mask, depth) = (
             vec![true; PLANE.0 * PLANE.1],
             vec![2.0f32; PLANE.0 * PLANE.1],
         );
         let pairs = stereo_pairs(&obs, &views, &poses, &[&depth, &depth], &[&mask, &mask]);
         (views, obs, pairs)
+    }
+
+    /// The stereo head with a hidden `dk1`.
+    fn stereo_plane(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
+        stereo_fixture(dk1, &[0.0; 8], &head())
+    }
+
+    #[test]
+    fn a_rig_bias_moves_both_cameras_and_the_pairs_with_the_render_recover_it() {
+        // A 1.5° roll of the rig with 3 mm of sideways offset.
+        let mut truth = [0.0; 8];
+        truth[2] = 0.003;
+        truth[7] = 1.5;
+        let (views, obs, pairs) = stereo_fixture(0.0, &truth, &head());
+        // Through the rig the two real images agree at the truth; read as a bias in each
+        // camera's own frame (the right camera swinging 2.6 mm about its own centre) they do
+        // not.
+        let at_truth = mse(&pairs, &views, &truth);
+        let mut own = views.clone();
+        own[1].rig_from_camera = Pose::IDENTITY;
+        let own_frame = mse(&pairs, &own, &truth);
+        assert!(at_truth < 0.1 * own_frame, "{at_truth} vs {own_frame}");
+        let both: Vec<Observation> = obs.iter().chain(&pairs).copied().collect();
+        let f = fit(&both, &views, &["pose-bias"], 1, &[0.0; 8]);
+        assert!((f.params[7] - 1.5).abs() < 0.02, "{:?}", f.params);
+        // A sideways offset and a yaw look alike on a plane; the image shift they make
+        // together (offset + yaw·depth, at 2 m) is determined.
+        let shift = |p: &[f64; 8]| p[2] + p[6].to_radians() * 2.0;
+        assert!(
+            (shift(&f.params) - shift(&truth)).abs() < 3e-4,
+            "{:?}",
+            f.params
+        );
     }
 
     #[test]

@@ -237,8 +237,19 @@ pub fn measure(
             *s += x / views.len().max(1) as f64;
         }
         let band = geometry::LEVELS[geometry::LEVELS.len() - 1];
-        let (img, obs) =
-            geometry::prepare(0, 0, &p.dn, &real, &p.mask, &p.depth, &p.camera, w, h, band);
+        let (img, obs) = geometry::prepare(
+            0,
+            0,
+            &p.dn,
+            &real,
+            &p.mask,
+            &p.depth,
+            &p.camera,
+            v.at.rig_from_camera,
+            w,
+            h,
+            band,
+        );
         let align = geometry::mse(&obs, std::slice::from_ref(&img), &[0.0; 8]);
         align_sum += align * obs.len() as f64;
         align_n += obs.len();

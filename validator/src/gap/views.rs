@@ -7,17 +7,15 @@
 //! expected image): geometry effects move the camera and its distortion, `shadows` turns on
 //! cast shadows of the campaign light, image effects map radiance to digital numbers.
 //!
-//! A `pose-bias` is applied to every camera's own `ground_from_camera`; for the right camera of a
-//! stereo rig the exact bias is the left bias conjugated by the 10 cm baseline, which differs by
-//! less than 1 mm for the catalogue's ±0.5° range (documented in `format-spec/registry.md`).
+//! A `pose-bias` moves the rig: each view carries its camera's place on the release's `rig`
+//! ([`Placement`]), so the right camera of a stereo head follows the left one rigidly.
 
 use regolith_format::camera_model::CameraModel;
-use regolith_format::frames::Pose;
 use regolith_reader::captures::ImageKind;
 use regolith_reader::{ReaderError, ReleaseView};
 
 use crate::render::{Light, Scene};
-use crate::sensor::SensorModel;
+use crate::sensor::{Placement, SensorModel};
 use crate::validate::grey;
 
 /// One (capture, camera) pair with its real frames.
@@ -29,8 +27,8 @@ pub struct GapView {
     pub camera: String,
     /// The calibrated camera.
     pub camera_model: CameraModel,
-    /// The measured `ground_from_camera`.
-    pub ground_from_camera: Pose,
+    /// The measured `ground_from_camera` and the camera's place on the rig.
+    pub at: Placement,
     /// Width, pixels.
     pub width: usize,
     /// Height, pixels.
@@ -124,11 +122,15 @@ pub fn load_views(view: &ReleaseView, only: &[String]) -> Result<Vec<GapView>, R
                         ),
                     ));
                 }
+                let entry = format!("cameras/{}", img.camera);
                 out.push(GapView {
                     capture: img.capture.clone(),
                     camera: img.camera.clone(),
                     camera_model,
-                    ground_from_camera: img.ground_from_camera,
+                    at: Placement {
+                        ground_from_camera: img.ground_from_camera,
+                        rig_from_camera: view.rig_from_camera(&entry)?,
+                    },
                     width: w,
                     height: h,
                     frames: vec![data],
@@ -153,14 +155,7 @@ pub fn predict(
     model: &SensorModel,
     supersample: u32,
 ) -> Prediction {
-    let r = model.render(
-        scene,
-        light,
-        &v.camera_model,
-        &v.ground_from_camera,
-        supersample,
-        None,
-    );
+    let r = model.render(scene, light, &v.camera_model, &v.at, supersample, None);
     Prediction {
         mask: r.rendered.mask.iter().map(|&m| m == 255).collect(),
         radiance: r.rendered.radiance,

@@ -83,11 +83,13 @@ pub enum Effect {
         /// Added to `k2`.
         dk2: f64,
     },
-    /// A fixed offset between the calibrated and the true camera pose, in camera axes.
+    /// A fixed offset between the calibrated and the true rig pose (the camera-to-rig
+    /// transform is off), in rig axes; every camera of the rig follows it ([`Placement`]).
+    /// On a lone camera the rig is the camera.
     PoseBias {
-        /// Translation, metres, camera frame.
+        /// Translation, metres, rig frame.
         translation_m: [f64; 3],
-        /// Rotations about the camera x, y, z axes, degrees (applied x first, then y, then z).
+        /// Rotations about the rig x, y, z axes, degrees (applied x first, then y, then z).
         rotation_deg: [f64; 3],
     },
     /// The entry's texture lacks the detail a ground Gaussian of this size removes: sample
@@ -96,6 +98,27 @@ pub enum Effect {
         /// Standard deviation, metres on the ground.
         sigma_m: f64,
     },
+}
+
+/// Where a camera was when it took a frame: its measured pose, and its place on the rig whose
+/// frame a `pose-bias` is in (registry: the bias moves the rig, its cameras follow rigidly).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placement {
+    /// The measured `ground_from_camera`.
+    pub ground_from_camera: Pose,
+    /// The camera in the rig frame: identity for the rig's reference camera and for a camera
+    /// on no rig.
+    pub rig_from_camera: Pose,
+}
+
+impl Placement {
+    /// A camera on no rig (or the rig's reference camera): the bias is in its own frame.
+    pub fn lone(ground_from_camera: Pose) -> Self {
+        Placement {
+            ground_from_camera,
+            rig_from_camera: Pose::IDENTITY,
+        }
+    }
 }
 
 /// A list of effects; empty = the plain model.
@@ -118,10 +141,11 @@ impl SensorModel {
         cam
     }
 
-    /// The true camera pose: `ground_from_camera * bias` for every `pose-bias`, where the bias
-    /// maps true-camera into calibrated-camera coordinates (`R = Rz * Ry * Rx`).
-    pub fn pose(&self, ground_from_camera: &Pose) -> Pose {
-        let mut pose = *ground_from_camera;
+    /// The true camera pose at `at`: every `pose-bias` `B` (which maps true-rig into
+    /// calibrated-rig coordinates, `R = Rz * Ry * Rx`) moves the rig, and the camera follows
+    /// rigidly: `ground_from_camera * rig_from_camera⁻¹ * B * rig_from_camera`.
+    pub fn pose(&self, at: &Placement) -> Pose {
+        let mut bias = Pose::IDENTITY;
         for e in &self.effects {
             if let Effect::PoseBias {
                 translation_m,
@@ -136,14 +160,16 @@ impl SensorModel {
                 let rot = q([0.0, 0.0, 1.0], rz)
                     .compose(&q([0.0, 1.0, 0.0], ry))
                     .compose(&q([1.0, 0.0, 0.0], rx));
-                let bias = Pose {
+                bias = bias.compose(&Pose {
                     translation_m: *translation_m,
                     rotation_xyzw: rot.rotation_xyzw,
-                };
-                pose = pose.compose(&bias);
+                });
             }
         }
-        pose
+        at.ground_from_camera
+            .compose(&at.rig_from_camera.inverse())
+            .compose(&bias)
+            .compose(&at.rig_from_camera)
     }
 
     /// The render options and light implied by the model: a `shadows` effect (the last one
@@ -228,7 +254,7 @@ pub struct SensorRender {
 }
 
 impl SensorModel {
-    /// Renders `scene` as the camera `calibrated` at the measured `ground_from_camera` sees it
+    /// Renders `scene` as the camera `calibrated` placed at `at` sees it
     /// under this model: its distortion and pose bias move the camera, `shadows` turns on cast
     /// shadows (direction from the effect, ambient from `light`), and the image effects make
     /// digital numbers. `noise_seed: None` leaves the noise out (the expected image).
@@ -237,7 +263,7 @@ impl SensorModel {
         scene: &crate::render::Scene<'_>,
         light: &Light,
         calibrated: &CameraModel,
-        ground_from_camera: &Pose,
+        at: &Placement,
         supersample: u32,
         noise_seed: Option<u64>,
     ) -> SensorRender {
@@ -259,7 +285,7 @@ impl SensorModel {
             &light,
             &crate::render::View {
                 camera: camera.clone(),
-                ground_from_camera: self.pose(ground_from_camera),
+                ground_from_camera: self.pose(at),
             },
             &opts,
         );
