@@ -35,10 +35,13 @@ const NOISE_TOL: f64 = 0.15;
 /// Exposure gain, relative (the offset trades against it and against the response curve).
 const EXPOSURE_GAIN_TOL: f64 = 0.10;
 /// Radial displacement of the distortion at 0.7 of the radius, relative: the displacement is
-/// what the images determine; dk1 and dk2 trade off over the terrain's part of the image, and
-/// one radial term is fitted unless held-out data ask for two. Seeds 101, 102: −8.1 and −2.3 %
-/// with the stereo pairs in the fit (−11.8 and −10.7 % from the render's samples alone).
-const DISTORTION_SHIFT_TOL: f64 = 0.12;
+/// what the images determine best (dk1 and dk2 trade off over the terrain's part of the image).
+/// Seeds 101, 102: −5.8 and −1.5 % with both radial terms fitted jointly to the render and the
+/// stereo pairs (−8.1 and −2.3 % with one term; −11.8 and −10.7 % from the render alone).
+const DISTORTION_SHIFT_TOL: f64 = 0.08;
+/// `dk1` itself, relative. Seeds 101, 102: −5.1 and +1.7 % (the aim is ±5 %; seeds 103–107
+/// read up to 16 % off, the two terms trading off).
+const DISTORTION_DK1_TOL: f64 = 0.06;
 /// Shadows' light direction, degrees.
 const SHADOWS_TOL_DEG: f64 = 3.0;
 /// Hidden texture low-pass σ, relative.
@@ -167,6 +170,16 @@ fn check_params(r: &CaseResult, truth: &Effect, seen: &mut Vec<String>, bad: &mu
                 "shift at 0.7",
                 rel(a, b) <= widen * DISTORTION_SHIFT_TOL,
                 format!("{a:.5} for {b:.5} ({:+.1} %)", 100.0 * (a / b - 1.0)),
+            );
+            check(
+                "dk1",
+                rel(f["dk1"], t["dk1"]) <= widen * DISTORTION_DK1_TOL,
+                format!(
+                    "{:.4} for {:.4} ({:+.1} %)",
+                    f["dk1"],
+                    t["dk1"],
+                    100.0 * (f["dk1"] / t["dk1"] - 1.0)
+                ),
             );
         }
         "shadows" => {
