@@ -43,6 +43,7 @@ use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
 
 use super::lsq::{solve, Problem};
+use super::overlap::DepthView;
 use super::photometry::erode;
 use crate::sensor::{gaussian_blur, Effect, Placement, SensorModel};
 
@@ -234,8 +235,19 @@ pub fn stereo_pairs(
         .zip(views)
         .map(|(m, v)| erode(m, v.width, v.height, 2))
         .collect();
-    let from_ground: Vec<Pose> = poses.iter().map(Pose::inverse).collect();
-    let (from_ground, inner) = (&from_ground, &inner);
+    let seen: Vec<DepthView<'_>> = views
+        .iter()
+        .enumerate()
+        .map(|(b, v)| DepthView {
+            camera: &v.camera,
+            camera_from_ground: poses[b].inverse(),
+            depth: depth[b],
+            inner: &inner[b],
+            w: v.width,
+            h: v.height,
+        })
+        .collect();
+    let seen = &seen;
     obs.par_iter()
         .filter(|o| o.mate.is_none())
         .flat_map_iter(|o| {
@@ -243,19 +255,8 @@ pub fn stereo_pairs(
             ((o.view + 1)..views.len())
                 .filter(move |&b| views[b].fold == views[o.view].fold)
                 .filter_map(move |b| {
-                    let vb = &views[b];
-                    let pc = from_ground[b].transform_point(ground);
-                    let [u, v] = vb.camera.project(pc)?;
-                    let (w, h) = (vb.width as f64, vb.height as f64);
-                    let edge = u.min(v).min(w - 1.0 - u).min(h - 1.0 - v);
-                    if edge.is_nan() || edge < EDGE_MARGIN {
-                        return None;
-                    }
-                    let j = v.round() as usize * vb.width + u.round() as usize;
-                    let zb = f64::from(depth[b][j]);
-                    // A NaN depth (no surface) compares false: not visible.
-                    let visible = (zb - pc[2]).abs() <= super::overlap::DEPTH_TOLERANCE * pc[2];
-                    (visible && inner[b][j]).then_some(Observation {
+                    let (pc, _, _) = seen[b].sees(ground, EDGE_MARGIN)?;
+                    Some(Observation {
                         view: o.view,
                         point: o.point,
                         value: 0.0,

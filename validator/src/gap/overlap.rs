@@ -23,6 +23,7 @@
 //! estimate away from the truth (mini seed 103, hidden 0.173: pairs within captures alone
 //! gave 0.175, all pairs 0.125).
 
+use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
 
 use super::geometry::bilinear;
@@ -31,6 +32,45 @@ use super::views::{GapView, Prediction};
 
 /// Relative depth difference up to which a point is taken to be visible in the other view.
 pub const DEPTH_TOLERANCE: f64 = 0.02;
+
+/// A view as the second of a pair sees the terrain: its render camera, the inverse of the pose
+/// the render used, the render's depth and an eroded terrain mask.
+pub struct DepthView<'a> {
+    /// The render's camera.
+    pub camera: &'a CameraModel,
+    /// Inverse of the render's `ground_from_camera`.
+    pub camera_from_ground: Pose,
+    /// The render's camera-frame depth (`NaN` off terrain).
+    pub depth: &'a [f32],
+    /// Pixels far enough inside the terrain.
+    pub inner: &'a [bool],
+    /// Width.
+    pub w: usize,
+    /// Height.
+    pub h: usize,
+}
+
+impl DepthView<'_> {
+    /// Where this view sees the ground point `ground`, at least `margin` px inside its border,
+    /// if its render sees that same surface there (depth within [`DEPTH_TOLERANCE`]) inside
+    /// `inner`: the point in this camera's frame, its pixel position and the pixel's index.
+    pub fn sees(&self, ground: [f64; 3], margin: f64) -> Option<([f64; 3], [f64; 2], usize)> {
+        let pc = self.camera_from_ground.transform_point(ground);
+        let [u, v] = self.camera.project(pc)?;
+        let edge = u
+            .min(v)
+            .min(self.w as f64 - 1.0 - u)
+            .min(self.h as f64 - 1.0 - v);
+        if edge.is_nan() || edge < margin {
+            return None;
+        }
+        let j = v.round() as usize * self.w + u.round() as usize;
+        let zb = f64::from(self.depth[j]);
+        // A NaN or infinite depth (no surface) compares false: not visible.
+        let visible = (zb - pc[2]).abs() <= DEPTH_TOLERANCE * pc[2];
+        (visible && self.inner[j]).then_some((pc, [u, v], j))
+    }
+}
 
 /// One terrain point seen by two views.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -47,7 +87,7 @@ struct Prepared<'a> {
     analysis: &'a Analysis,
     pred: &'a Prediction,
     pose: Pose,
-    camera_from_ground: Pose,
+    seen: DepthView<'a>,
     scale: f64,
     cx: f64,
     cy: f64,
@@ -75,7 +115,14 @@ pub fn pairs(
                 analysis,
                 pred: p,
                 pose: *pose,
-                camera_from_ground: pose.inverse(),
+                seen: DepthView {
+                    camera: &p.camera,
+                    camera_from_ground: pose.inverse(),
+                    depth: &p.depth,
+                    inner: &analysis.eroded,
+                    w,
+                    h,
+                },
                 scale: rho2_scale(&v.camera_model, w, h),
                 cx: v.camera_model.cx,
                 cy: v.camera_model.cy,
@@ -99,21 +146,9 @@ pub fn pairs(
                 let rho2_a = ((x as f64 - va.cx).powi(2) + (y as f64 - va.cy).powi(2)) / va.scale;
                 let others = prepared.iter().zip(folds).skip(a + 1);
                 for (vb, _) in others.filter(|(_, f)| **f == folds[a]) {
-                    let pc = vb.camera_from_ground.transform_point(ground);
-                    let Some([u, v]) = vb.pred.camera.project(pc) else {
+                    let Some((_, [u, v], _)) = vb.seen.sees(ground, 0.0) else {
                         continue;
                     };
-                    let (xb, yb) = (u.round(), v.round());
-                    if !(xb >= 0.0 && yb >= 0.0 && xb < vb.w as f64 && yb < vb.h as f64) {
-                        continue;
-                    }
-                    let j = yb as usize * vb.w + xb as usize;
-                    let zb = f64::from(vb.pred.depth[j]);
-                    // A NaN or infinite depth (no surface) compares false: not visible.
-                    let visible = (zb - pc[2]).abs() <= DEPTH_TOLERANCE * pc[2];
-                    if !vb.analysis.eroded[j] || !visible {
-                        continue;
-                    }
                     let Some(rb) =
                         bilinear(&vb.analysis.real, vb.w, vb.h, u, v).filter(|r| usable(*r))
                     else {
