@@ -504,8 +504,6 @@ struct Witness {
     after: f64,
     /// Weight of a pair.
     weight: f64,
-    /// Radial terms of the distortion's joint fit.
-    terms: usize,
 }
 
 /// Fits `set` on `levels` (made from `preds`, the renders of `model`): the render's own fit,
@@ -517,7 +515,8 @@ struct Witness {
 /// from 8.1, 2.3, 12.8, 10.2, 14.7, 2.2, 8.7 % off (one term) to 5.8, 1.5, 10.1, 9.0, 0.0, 1.0,
 /// 10.3 % (mini seeds 101–107), dk1 from 17 % off on average to 8.9 %. The held-out residual,
 /// render and pairs together, did not tell which seeds gain (it asked for the second term on
-/// 103 and 107, and 107 lost), so it does not decide.
+/// 103 and 107, and 107 lost), so it does not decide. Without pairs (a lone camera)
+/// `lone_terms` decides. Returns the fit, the radial terms it used and the pairs' figures.
 ///
 /// Each view carries its camera's place on the rig ([`crate::sensor::Placement`]), so a pose
 /// bias moves both cameras of a capture as the rig moves them, and the pairs see a bias as it
@@ -531,13 +530,14 @@ fn witnessed_fit(
     preds: &[Prediction],
     levels: &Levels,
     set: &[&str],
-    terms: usize,
-) -> (geometry::GeometryFit, Option<Witness>) {
-    let f = fit_levels(levels, set, terms, &|_, _| true);
+    lone_terms: &dyn Fn() -> usize,
+) -> (geometry::GeometryFit, usize, Option<Witness>) {
     let stereo = stereo_levels(ctx, model, preds, levels);
     if stereo.last().is_none_or(|(_, pairs)| pairs.is_empty()) {
-        return (f, None);
+        let terms = lone_terms();
+        return (fit_levels(levels, set, terms, &|_, _| true), terms, None);
     }
+    let f = fit_levels(levels, set, 1, &|_, _| true);
     let stereo_mse = |p: &[f64; 8]| {
         stereo
             .last()
@@ -545,20 +545,15 @@ fn witnessed_fit(
     };
     let weight = (f.mse / stereo_mse(&f.params).max(1e-9)).sqrt();
     let both = joined(levels, &stereo, weight);
-    let terms = if set.contains(&"distortion") {
-        2
-    } else {
-        terms
-    };
+    let terms = if set.contains(&"distortion") { 2 } else { 1 };
     let f = fit_levels(&both, set, terms, &|_, _| true);
     let witness = Witness {
         before: stereo_mse(&[0.0; 8]),
         after: stereo_mse(&f.params),
         levels: both,
         weight,
-        terms,
     };
-    (f, Some(witness))
+    (f, terms, Some(witness))
 }
 
 /// Coarse-to-fine fit of `set` on the observations passing `keep`, the distortion with
@@ -655,7 +650,7 @@ fn geometry_stage(
     if set.is_empty() {
         return scored(&cands);
     }
-    let terms = radial_terms(ctx, &levels, &set, cands[choice.index].cv_error);
+    let one_term_cv = cands[choice.index].cv_error;
     // Fit on everything and apply; a pose bias is then refined once from a render seen from
     // the corrected pose. A pose bias moves the camera: what the render occludes and where
     // its silhouette falls change, which the fixed render's samples cannot follow (mini seed
@@ -665,24 +660,24 @@ fn geometry_stage(
     // −0.046, −0.024, −0.044 in three rounds).
     //
     // The render's own fit comes first; the stereo pairs then join it ([`witnessed_fit`]), so
-    // they steer the parameters where the texture biases the render's samples. And the correction must bring
-    // each capture's two real images closer through the terrain's geometry. One fitted to the
-    // entry's texture does not: with a texture low-pass hidden (mini seed 102) a distortion
+    // they steer the parameters where the texture biases the render's samples. And the
+    // correction must bring each capture's two real images closer through the terrain's
+    // geometry. One fitted to the entry's texture does not: with a texture low-pass hidden (mini seed 102) a distortion
     // fitted to the render raised the stereo residual from 0.015 to 0.135, where hidden
     // distortions lowered it (0.133 → 0.013 and 0.063 → 0.018 on seeds 101, 102).
-    let (f, witness) = witnessed_fit(ctx, model, &preds, &levels, &set, terms);
+    let lone_terms = || radial_terms(ctx, &levels, &set, one_term_cv);
+    let (f, terms, witness) = witnessed_fit(ctx, model, &preds, &levels, &set, &lone_terms);
     if let Some(w) = &witness {
         if w.after >= w.before {
             return scored(&cands);
         }
     }
-    let terms = witness.as_ref().map_or(terms, |w| w.terms);
     let mut current = with_geometry(model, &set, &f.params);
     let mut std_err_fit = f.std_err;
     if set.contains(&"pose-bias") {
         let seen = ctx.predict_all(&current);
         let seen_levels = geometry_levels(ctx, &seen);
-        let (refine, _) = witnessed_fit(ctx, &current, &seen, &seen_levels, &set, terms);
+        let (refine, _, _) = witnessed_fit(ctx, &current, &seen, &seen_levels, &set, &|| terms);
         current = with_geometry(&current, &set, &refine.params);
         std_err_fit = refine.std_err;
     }
@@ -783,8 +778,9 @@ fn held_out_mse(levels: &Levels, set: &[&str], radial_terms: usize, hold: Option
     geometry::mse(&test, fine_imgs, &f.params)
 }
 
-/// How many radial terms the chosen `set`'s distortion gets: the second (`dk2`) only when it
-/// lowers the held-out residual of the one-term fit (`one_term_cv`) by [`SECOND_TERM_MIN`].
+/// How many radial terms the chosen `set`'s distortion gets when no stereo pairs join its fit:
+/// the second (`dk2`) only when it lowers the held-out residual of the one-term fit
+/// (`one_term_cv`) by [`SECOND_TERM_MIN`].
 fn radial_terms(ctx: &Ctx<'_>, levels: &Levels, set: &[&str], one_term_cv: f64) -> usize {
     if !set.contains(&"distortion") {
         return 1;
@@ -798,10 +794,11 @@ fn radial_terms(ctx: &Ctx<'_>, levels: &Levels, set: &[&str], one_term_cv: f64) 
 }
 
 /// Smallest held-out reduction of the band-pass residual for which the distortion gets its
-/// second radial term when no stereo pairs join the fit. On mini (seeds 101–103) the second term raised the held-out residual by
-/// 0.004–0.008, also where a dk2 of −0.013 was hidden: over the terrain's part of a NavCam
-/// view one term describes the displacement as well as two, and the two-term fit wanders
-/// along their trade-off.
+/// second radial term when no stereo pairs join the fit. On mini (seeds 101–103, render
+/// samples alone) the second term raised the held-out residual by 0.004–0.008, also where a dk2
+/// of −0.013 was hidden: over the terrain's part of a NavCam view the render's samples describe
+/// the displacement with one term as well as with two, and the two-term fit wanders along
+/// their trade-off.
 const SECOND_TERM_MIN: f64 = 0.005;
 
 /// Radial displacement (normalised image units) that the distortion increments of `p` make at
