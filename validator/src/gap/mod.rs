@@ -1119,12 +1119,6 @@ fn blur_stage(ctx: &Ctx<'_>, model: &mut SensorModel, min_share: f64, out: &mut 
     ));
 }
 
-/// Share of the shadow pixels' error the shadowed prediction must remove, overall and (at half
-/// of it) in every capture, for `shadows` to be named.
-const MIN_SHADOW_EXPLAINED: f64 = 0.5;
-/// Fewest shadow pixels (all views) for a shadow test.
-const MIN_SHADOW_PIXELS: usize = 200;
-
 /// Cast shadows of the campaign light ([`shadows`]). Updates `model`.
 fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
     if has(model, "shadows") {
@@ -1160,10 +1154,7 @@ fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
         })
         .collect();
     let ev = shadows::evidence(&views);
-    if ev.pixels < MIN_SHADOW_PIXELS
-        || ev.explained < MIN_SHADOW_EXPLAINED
-        || ev.per_fold.iter().any(|f| *f < 0.5 * MIN_SHADOW_EXPLAINED)
-    {
+    if !ev.convincing() {
         return;
     }
     let level = shadows::log_level(&views);
