@@ -134,6 +134,10 @@ pub enum Command {
         /// Only these captures (comma-separated or repeated; default: all).
         #[arg(long, value_delimiter = ',')]
         captures: Vec<String>,
+        /// Only these cameras, e.g. `navcam_left` (comma-separated or repeated; default: all).
+        /// One camera of a stereo head is examined as a lone camera, without stereo pairs.
+        #[arg(long, value_delimiter = ',')]
+        cameras: Vec<String>,
         /// Write the fitted model into a new release whose parent is the examined one.
         #[arg(long)]
         apply: bool,

@@ -3,14 +3,15 @@
 //! hidden; each is compiled and `gap` runs on its finest laser entry. Prints one line per case
 //! (hidden → named, fitted vs true parameters, gap before → after) and the matrix.
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES]`
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
-//! locations per campaign, default the preset's 2).
+//! locations per campaign, default the preset's 2, `-` for it; `CAMERAS`: comma-separated
+//! cameras to examine, e.g. `navcam_left` for a lone camera, default all).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::Path;
 
-use regolith_tests::gap_case::{cases, run_case, Confusion};
+use regolith_tests::gap_case::{cases, run_case, Confusion, Setup};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -20,7 +21,16 @@ fn main() {
         .unwrap_or_else(|| vec![101, 102]);
     let root = Path::new(args.get(1).map_or("/tmp/gap_matrix", String::as_str)).to_path_buf();
     let mut cases = cases();
-    let captures: Option<usize> = args.get(3).map(|s| s.parse().unwrap());
+    let setup = Setup {
+        captures: args
+            .get(3)
+            .filter(|s| *s != "-")
+            .map(|s| s.parse().unwrap()),
+        cameras: args
+            .get(4)
+            .map(|s| s.split(',').map(String::from).collect())
+            .unwrap_or_default(),
+    };
     if let Some(only) = args.get(2).filter(|s| *s != "all") {
         let only: Vec<&str> = only.split(',').collect();
         cases.retain(|(label, _)| only.contains(&label.as_str()));
@@ -28,7 +38,7 @@ fn main() {
     let mut matrix = Confusion::default();
     for (label, hidden) in &cases {
         for &seed in &seeds {
-            let r = run_case(&root, label, seed, hidden, captures);
+            let r = run_case(&root, label, seed, hidden, &setup);
             println!("{}", r.line(label, seed));
             matrix.add(label, hidden, &r.named());
         }

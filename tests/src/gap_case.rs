@@ -110,19 +110,22 @@ impl CaseResult {
     }
 }
 
-/// Runs one case in `root/<label>-<seed>` (replaced if present). `captures`: capture locations
-/// per campaign, `None` for the preset's.
+/// How a case's campaign is made and looked at, beyond its hidden effects.
+#[derive(Debug, Clone, Default)]
+pub struct Setup {
+    /// Capture locations per campaign, `None` for the preset's.
+    pub captures: Option<usize>,
+    /// Only these cameras are examined (all when empty): `["navcam_left"]` runs the workflow as
+    /// for a lone camera, without stereo pairs.
+    pub cameras: Vec<String>,
+}
+
+/// Runs one case in `root/<label>-<seed>` (replaced if present).
 ///
 /// # Panics
 /// On any failure of generation, compilation or the gap run (this is test support).
 #[allow(clippy::unwrap_used)]
-pub fn run_case(
-    root: &Path,
-    label: &str,
-    seed: u64,
-    hidden: &[&str],
-    captures: Option<usize>,
-) -> CaseResult {
+pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Setup) -> CaseResult {
     let dir = root.join(format!("{label}-{seed}"));
     let _ = std::fs::remove_dir_all(&dir);
     let camp = dir.join("camp");
@@ -130,7 +133,7 @@ pub fn run_case(
         preset: Preset::Mini,
         seed,
         full: false,
-        captures,
+        captures: setup.captures,
         hidden: hidden.iter().map(|h| HiddenSpec::named(h)).collect(),
     };
     generate(&opts, &camp, &|_, _| {}).unwrap();
@@ -146,7 +149,10 @@ pub fn run_case(
     drop(writer);
     let db = Database::open(dir.join("db")).unwrap();
     let view = db.release("mini@1").unwrap();
-    let opts = GapOptions::default();
+    let opts = GapOptions {
+        cameras: setup.cameras.clone(),
+        ..GapOptions::default()
+    };
     let gap = gap::run(&view, ENTRY, &opts).unwrap();
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(camp.join("truth/hidden.json")).unwrap()).unwrap();

@@ -11,14 +11,15 @@
 //! where they are looser than the workflow's targets, what limits them is how little of the
 //! camera's field and depth range mini's two capture locations show, not the optimiser. From
 //! six locations a pose bias's displacement and roll are within the targets (the second test),
-//! though not yet every axis of it.
+//! though not yet every axis of it. The third test looks through one camera alone, as for a
+//! rover with a single NavCam.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::BTreeMap;
 
 use regolith_format::frames::Pose;
-use regolith_tests::gap_case::{cases, figures, run_case, CaseResult, Confusion};
+use regolith_tests::gap_case::{cases, figures, run_case, CaseResult, Confusion, Setup};
 use regolith_validator::gap::Figure;
 use regolith_validator::sensor::{distortion_shift, Effect, Placement, SensorModel};
 
@@ -43,6 +44,10 @@ const DISTORTION_SHIFT_TOL: f64 = 0.08;
 /// `dk1` itself, relative. Seeds 101, 102: −5.1 and +1.7 % (the aim is ±5 %; seeds 103–107
 /// read up to 16 % off, the two terms trading off).
 const DISTORTION_DK1_TOL: f64 = 0.06;
+/// Distortion seen by a lone camera (no stereo pairs; one radial term unless the held-out
+/// render residual asks for two): the displacement at 0.7 of the radius and `dk1`, relative.
+/// Seeds 101, 102 (left NavCam alone): shift −11.7 and −15.0 %, dk1 −12.9 and −13.6 %.
+const LONE_DISTORTION_TOL: f64 = 0.17;
 /// Shadows' light direction, degrees.
 const SHADOWS_TOL_DEG: f64 = 3.0;
 /// Hidden texture low-pass σ, relative.
@@ -126,9 +131,21 @@ fn fitted_effect(r: &CaseResult, name: &str) -> Option<Effect> {
 
 /// Parameter checks of one named, hidden effect; every check's figure appended to `seen`, the
 /// violations to `bad`.
-fn check_params(r: &CaseResult, truth: &Effect, seen: &mut Vec<String>, bad: &mut Vec<String>) {
+/// `lone`: the case looked through one camera ([`LONE_DISTORTION_TOL`] for a distortion).
+fn check_params(
+    r: &CaseResult,
+    truth: &Effect,
+    lone: bool,
+    seen: &mut Vec<String>,
+    bad: &mut Vec<String>,
+) {
     let name = truth.name();
     let widen = if r.truth.len() > 1 { PAIR_FACTOR } else { 1.0 };
+    let (shift_tol, dk1_tol) = if lone {
+        (LONE_DISTORTION_TOL, LONE_DISTORTION_TOL)
+    } else {
+        (DISTORTION_SHIFT_TOL, DISTORTION_DK1_TOL)
+    };
     let Some(fit) = fitted_effect(r, name) else {
         return;
     };
@@ -177,12 +194,12 @@ fn check_params(r: &CaseResult, truth: &Effect, seen: &mut Vec<String>, bad: &mu
             );
             check(
                 "shift at 0.7",
-                rel(a, b) <= widen * DISTORTION_SHIFT_TOL,
+                rel(a, b) <= widen * shift_tol,
                 format!("{a:.5} for {b:.5} ({:+.1} %)", 100.0 * (a / b - 1.0)),
             );
             check(
                 "dk1",
-                rel(f["dk1"], t["dk1"]) <= widen * DISTORTION_DK1_TOL,
+                rel(f["dk1"], t["dk1"]) <= widen * dk1_tol,
                 format!(
                     "{:.4} for {:.4} ({:+.1} %)",
                     f["dk1"],
@@ -226,7 +243,7 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
     let mut lines = Vec::new();
     for (label, hidden) in cases() {
         for seed in SEEDS {
-            let r = run_case(root.path(), &label, seed, &hidden, None);
+            let r = run_case(root.path(), &label, seed, &hidden, &Setup::default());
             lines.push(r.line(&label, seed));
             let named = r.named();
             let mut case_bad = Vec::new();
@@ -235,7 +252,7 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
             }
             let mut seen = Vec::new();
             for t in &r.truth {
-                check_params(&r, t, &mut seen, &mut case_bad);
+                check_params(&r, t, false, &mut seen, &mut case_bad);
             }
             lines.extend(seen);
             check_shrink(&r, &hidden, &mut case_bad);
@@ -262,7 +279,16 @@ fn a_pose_bias_seen_from_six_capture_locations_is_within_3_mm_and_0_1_degrees_of
     let root = tempfile::tempdir().unwrap();
     let mut bad = Vec::new();
     for seed in SEEDS {
-        let r = run_case(root.path(), "pose-bias", seed, &["pose-bias"], Some(6));
+        let r = run_case(
+            root.path(),
+            "pose-bias",
+            seed,
+            &["pose-bias"],
+            &Setup {
+                captures: Some(6),
+                ..Setup::default()
+            },
+        );
         let line = r.line("pose-bias (6)", seed);
         println!("{line}");
         let truth = r.truth[0];
@@ -287,5 +313,44 @@ fn a_pose_bias_seen_from_six_capture_locations_is_within_3_mm_and_0_1_degrees_of
             ));
         }
     }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+/// One camera of the stereo head examined alone (`--cameras navcam_left`): no stereo pairs join
+/// the geometric fits and none witnesses them, the distortion's radial terms are chosen on the
+/// held-out render residual, and the rig frame is the camera's own. Nothing hidden must name
+/// nothing; a distortion and a pose bias must be named alone, fitted within
+/// [`LONE_DISTORTION_TOL`] and [`POSE_BIAS_TOL_M`], and shrink their gap.
+#[test]
+fn a_lone_camera_names_nothing_for_nothing_and_finds_a_distortion_and_a_pose_bias() {
+    let root = tempfile::tempdir().unwrap();
+    let setup = Setup {
+        cameras: vec!["navcam_left".into()],
+        ..Setup::default()
+    };
+    let mut bad = Vec::new();
+    let mut lines = Vec::new();
+    let mut matrix = Confusion::default();
+    for hidden in [vec![], vec!["distortion"], vec!["pose-bias"]] {
+        let label = hidden.first().copied().unwrap_or("none");
+        for seed in SEEDS {
+            let r = run_case(root.path(), label, seed, &hidden, &setup);
+            lines.push(r.line(&format!("{label} (left alone)"), seed));
+            let mut case_bad = Vec::new();
+            if !matrix.add(label, &hidden, &r.named()) {
+                case_bad.push(format!("named {:?}, hidden {hidden:?}", r.named()));
+            }
+            for t in &r.truth {
+                check_params(&r, t, true, &mut lines, &mut case_bad);
+            }
+            check_shrink(&r, &hidden, &mut case_bad);
+            bad.extend(
+                case_bad
+                    .into_iter()
+                    .map(|b| format!("{label} seed {seed}: {b}")),
+            );
+        }
+    }
+    println!("{}\n\n{matrix}", lines.join("\n"));
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }

@@ -16,6 +16,7 @@ pub fn run(
     release: &str,
     entry: &str,
     captures: &[String],
+    cameras: &[String],
     apply_model: bool,
     min_share: f64,
     report: Option<&Path>,
@@ -29,6 +30,7 @@ pub fn run(
     let view = database.release(release)?;
     let opts = GapOptions {
         captures: captures.to_vec(),
+        cameras: cameras.to_vec(),
         min_share,
         keep_images: report.is_some(),
         ..GapOptions::default()

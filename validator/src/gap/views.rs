@@ -90,11 +90,22 @@ fn err(entry: &str, message: String) -> ReaderError {
 }
 
 /// Loads every (capture, camera) of the release's `captures` entry, optionally only the named
-/// captures.
-pub fn load_views(view: &ReleaseView, only: &[String]) -> Result<Vec<GapView>, ReaderError> {
+/// captures and cameras (a name that matches no raw image is an error). With one camera of a
+/// stereo head the views have no stereo pairs: the workflow then runs as for a lone camera.
+pub fn load_views(
+    view: &ReleaseView,
+    captures: &[String],
+    cameras: &[String],
+) -> Result<Vec<GapView>, ReaderError> {
     let caps = view.captures("captures")?;
     let mut images = caps.images()?;
-    images.retain(|i| i.kind == ImageKind::Raw && (only.is_empty() || only.contains(&i.capture)));
+    images.retain(|i| i.kind == ImageKind::Raw);
+    let capture_names: Vec<&String> = images.iter().map(|i| &i.capture).collect();
+    let camera_names: Vec<&String> = images.iter().map(|i| &i.camera).collect();
+    known(captures, &capture_names, "capture")?;
+    known(cameras, &camera_names, "camera")?;
+    let wanted = |names: &[String], n: &String| names.is_empty() || names.contains(n);
+    images.retain(|i| wanted(captures, &i.capture) && wanted(cameras, &i.camera));
     images.sort_by(|a, b| (&a.capture, &a.camera, a.frame).cmp(&(&b.capture, &b.camera, b.frame)));
     let mut out: Vec<GapView> = Vec::new();
     for img in images {
@@ -147,6 +158,22 @@ pub fn load_views(view: &ReleaseView, only: &[String]) -> Result<Vec<GapView>, R
     Ok(out)
 }
 
+/// An error naming the first of `names` not among `have`.
+fn known(names: &[String], have: &[&String], what: &str) -> Result<(), ReaderError> {
+    match names.iter().find(|n| !have.contains(n)) {
+        None => Ok(()),
+        Some(n) => {
+            let mut have = have.to_vec();
+            have.sort();
+            have.dedup();
+            Err(err(
+                "captures",
+                format!("no {what} named {n:?} (the release has {have:?})"),
+            ))
+        }
+    }
+}
+
 /// Renders `v` through `model` without noise (see the module docs).
 pub fn predict(
     scene: &Scene<'_>,
@@ -162,5 +189,26 @@ pub fn predict(
         dn: r.dn,
         depth: r.rendered.depth,
         camera: r.camera,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_selected_name_the_release_lacks_is_an_error_naming_what_it_has() {
+        let (l, r) = ("navcam_left".to_string(), "navcam_right".to_string());
+        let have = [&r, &l, &l];
+        assert!(known(&[], &have, "camera").is_ok());
+        assert!(known(std::slice::from_ref(&l), &have, "camera").is_ok());
+        let e = known(&["navcam_middle".into()], &have, "camera")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("no camera named \"navcam_middle\"")
+                && e.contains("[\"navcam_left\", \"navcam_right\"]"),
+            "{e}"
+        );
     }
 }
