@@ -235,6 +235,40 @@ fn check_params(
     }
 }
 
+/// What a case hid and how it was looked at.
+struct Case<'a> {
+    label: &'a str,
+    seed: u64,
+    hidden: &'a [&'a str],
+    /// Through one camera alone (see [`check_params`]).
+    lone: bool,
+}
+
+/// Judges one case: naming (counted in `matrix`), parameters (their figures appended to
+/// `lines`) and shrink; violations appended to `bad`.
+fn judge(
+    r: &CaseResult,
+    case: &Case<'_>,
+    matrix: &mut Confusion,
+    lines: &mut Vec<String>,
+    bad: &mut Vec<String>,
+) {
+    let mut case_bad = Vec::new();
+    let named = r.named();
+    if !matrix.add(case.label, case.hidden, &named) {
+        case_bad.push(format!("named {named:?}, hidden {:?}", case.hidden));
+    }
+    for t in &r.truth {
+        check_params(r, t, case.lone, lines, &mut case_bad);
+    }
+    check_shrink(r, case.hidden, &mut case_bad);
+    bad.extend(
+        case_bad
+            .into_iter()
+            .map(|b| format!("{} seed {}: {b}", case.label, case.seed)),
+    );
+}
+
 #[test]
 fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
     let root = tempfile::tempdir().unwrap();
@@ -245,22 +279,13 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
         for seed in SEEDS {
             let r = run_case(root.path(), &label, seed, &hidden, &Setup::default());
             lines.push(r.line(&label, seed));
-            let named = r.named();
-            let mut case_bad = Vec::new();
-            if !matrix.add(&label, &hidden, &named) {
-                case_bad.push(format!("named {named:?}, hidden {hidden:?}"));
-            }
-            let mut seen = Vec::new();
-            for t in &r.truth {
-                check_params(&r, t, false, &mut seen, &mut case_bad);
-            }
-            lines.extend(seen);
-            check_shrink(&r, &hidden, &mut case_bad);
-            bad.extend(
-                case_bad
-                    .into_iter()
-                    .map(|b| format!("{label} seed {seed}: {b}")),
-            );
+            let case = Case {
+                label: &label,
+                seed,
+                hidden: &hidden,
+                lone: false,
+            };
+            judge(&r, &case, &mut matrix, &mut lines, &mut bad);
         }
     }
     println!("{}", lines.join("\n"));
@@ -336,19 +361,13 @@ fn a_lone_camera_names_nothing_for_nothing_and_finds_a_distortion_and_a_pose_bia
         for seed in SEEDS {
             let r = run_case(root.path(), label, seed, &hidden, &setup);
             lines.push(r.line(&format!("{label} (left alone)"), seed));
-            let mut case_bad = Vec::new();
-            if !matrix.add(label, &hidden, &r.named()) {
-                case_bad.push(format!("named {:?}, hidden {hidden:?}", r.named()));
-            }
-            for t in &r.truth {
-                check_params(&r, t, true, &mut lines, &mut case_bad);
-            }
-            check_shrink(&r, &hidden, &mut case_bad);
-            bad.extend(
-                case_bad
-                    .into_iter()
-                    .map(|b| format!("{label} seed {seed}: {b}")),
-            );
+            let case = Case {
+                label,
+                seed,
+                hidden: &hidden,
+                lone: true,
+            };
+            judge(&r, &case, &mut matrix, &mut lines, &mut bad);
         }
     }
     println!("{}\n\n{matrix}", lines.join("\n"));

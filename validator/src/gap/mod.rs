@@ -317,15 +317,14 @@ struct Ctx<'a> {
 }
 
 impl<'a> Ctx<'a> {
-    /// The views of `captures` and `cameras` (all when empty) of the release, with the
-    /// entry's `geometry`.
+    /// The views of `opts.captures` and `opts.cameras` (all when empty) of the release, with
+    /// the entry's `geometry`, rendered at `opts.supersample`.
     fn load(
         view: &ReleaseView,
         geometry: &'a Geometry,
-        (captures, cameras): (&[String], &[String]),
-        supersample: u32,
+        opts: &GapOptions,
     ) -> Result<Ctx<'a>, ReaderError> {
-        let views = load_views(view, captures, cameras)?;
+        let views = load_views(view, &opts.captures, &opts.cameras)?;
         let folds = folds(&views);
         let n_folds = folds.iter().max().map_or(1, |m| m + 1);
         Ok(Ctx {
@@ -335,7 +334,7 @@ impl<'a> Ctx<'a> {
             views,
             folds,
             n_folds,
-            supersample: supersample.max(1),
+            supersample: opts.supersample.max(1),
         })
     }
 
@@ -1470,7 +1469,12 @@ pub fn texture_figures(
     captures: &[String],
 ) -> Result<Option<TextureFigures>, ReaderError> {
     let geometry_data = entry_geometry(view, entry)?;
-    let ctx = Ctx::load(view, &geometry_data, (captures, &[]), 1)?;
+    let opts = GapOptions {
+        captures: captures.to_vec(),
+        supersample: 1,
+        ..GapOptions::default()
+    };
+    let ctx = Ctx::load(view, &geometry_data, &opts)?;
     let mut model = stored_model(view, entry)?;
     Ok(texture_stage(&ctx, &mut model, &mut Vec::new()))
 }
@@ -1489,12 +1493,7 @@ pub fn measure_model(
     opts: &GapOptions,
 ) -> Result<Metrics, ReaderError> {
     let geometry_data = entry_geometry(view, entry)?;
-    let ctx = Ctx::load(
-        view,
-        &geometry_data,
-        (&opts.captures, &opts.cameras),
-        opts.supersample,
-    )?;
+    let ctx = Ctx::load(view, &geometry_data, opts)?;
     let shadow = ctx.shadow_pixels(reference);
     Ok(ctx.measure(&ctx.predict_all(model), model, &shadow))
 }
@@ -1502,12 +1501,7 @@ pub fn measure_model(
 /// Runs the gap workflow on `entry` (see the module docs).
 pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResult, ReaderError> {
     let geometry_data = entry_geometry(view, entry)?;
-    let ctx = Ctx::load(
-        view,
-        &geometry_data,
-        (&opts.captures, &opts.cameras),
-        opts.supersample,
-    )?;
+    let ctx = Ctx::load(view, &geometry_data, opts)?;
     let model_before = stored_model(view, entry)?;
     let preds_before = ctx.predict_all(&model_before);
     // Where the campaign light casts shadows, seen through the stored geometry: the same
