@@ -934,6 +934,19 @@ const SIGNIFICANCE: f64 = 2.0;
 /// out at 0.149 and above (six captures, seed 103: 0.149 for 0.173).
 const VIGNETTING_MIN_STRENGTH: f64 = 0.05;
 
+/// Frees the exposure gain in a final fit of `set` unless an exposure or a response curve is
+/// in it. The gain is a nuisance of every final fit: the entry's albedo and shading are never
+/// exactly at the camera's level, and an effect fitted without a free gain absorbs that level
+/// (a darkening effect comes out too weak under a render that is too dark). Exposure is
+/// written into the model only when it was chosen. Not with a response curve: over the narrow
+/// intensity range of a terrain, gain and gamma trade off (a free gain moved a fitted gamma of
+/// 2.0 to 2.3-2.4), while the level bias alone moves it by only ~0.05.
+fn with_level_nuisance(set: &mut Vec<&str>) {
+    if !set.contains(&"exposure") && !set.contains(&"gamma") {
+        set.push("gain");
+    }
+}
+
 /// The overlap pairs' witness for a vignetting: the held-out share (over capture folds) of
 /// their squared log ratio that adding a vignetting removes, next to the other effects of the
 /// best-scoring candidate with a vignetting and the `present` ones. `None` with fewer than two
@@ -957,9 +970,7 @@ fn overlap_witness(
     without.extend(present);
     let mut with = without.clone();
     with.push("vignetting");
-    if !without.contains(&"exposure") && !without.contains(&"gamma") {
-        without.push("gain");
-    }
+    with_level_nuisance(&mut without);
     let by_radiance = with.contains(&"exposure");
     let (mut err_with, mut err_without) = (0.0, 0.0);
     for hold in 0..n_folds {
@@ -967,8 +978,8 @@ fn overlap_witness(
         let test = |f: usize| f == hold;
         let a = photometry::refit_with_overlap(plain, pairs, &with, &train, by_radiance);
         let b = photometry::refit_with_overlap(plain, pairs, &without, &train, by_radiance);
-        err_with += photometry::pair_mse(pairs, &a.params, &test).0;
-        err_without += photometry::pair_mse(pairs, &b.params, &test).0;
+        err_with += photometry::pair_mse(pairs, &a.params, &test);
+        err_without += photometry::pair_mse(pairs, &b.params, &test);
     }
     (err_without > 0.0).then(|| 1.0 - err_with / err_without)
 }
@@ -1029,14 +1040,10 @@ fn photometry_stage(
         .collect();
     let witness = overlap_witness(ctx.n_folds, &cands, &present, &plain, &pairs);
     let witnessed = witness.is_some_and(|w| w >= MIN_OVERLAP_WITNESS);
-    let floor = |e: &str| {
-        if e == "vignetting" && witnessed {
-            0.0
-        } else if e == "vignetting" {
-            MIN_VIGNETTING_DN2
-        } else {
-            MIN_PHOTOMETRIC_DN2
-        }
+    let floor = |e: &str| match e {
+        "vignetting" if witnessed => 0.0,
+        "vignetting" => MIN_VIGNETTING_DN2,
+        _ => MIN_PHOTOMETRIC_DN2,
     };
     let Some(choice) = choose_with(&cands, min_share, &floor) else {
         return scored(&cands);
@@ -1044,15 +1051,7 @@ fn photometry_stage(
     let chosen = cands[choice.index].effects.clone();
     let mut fit_set: Vec<&str> = chosen.clone();
     fit_set.extend(&present);
-    // The exposure gain is a nuisance of every final fit: the entry's albedo and shading are
-    // never exactly at the camera's level, and an effect fitted without a free gain absorbs that
-    // level (a darkening effect comes out too weak under a render that is too dark). Exposure is
-    // written into the model only when it was chosen. Not with a response curve: over the
-    // narrow intensity range of a terrain, gain and gamma trade off (a free gain moved a fitted
-    // gamma of 2.0 to 2.3-2.4), while the level bias alone moves it by only ~0.05.
-    if !fit_set.contains(&"exposure") && !fit_set.contains(&"gamma") {
-        fit_set.push("gain");
-    }
+    with_level_nuisance(&mut fit_set);
     // An exposure's gain and offset come from the radiance-side fit (see
     // `photometry::fit_radiance`: fitted on DN they are attenuated, 0.66/0.73/0.60 for
     // 0.76/0.93/0.76 on mini seeds 101-103, 0.73/0.92/0.69 on radiance). Without an exposure

@@ -274,16 +274,20 @@ fn pair_error(q: &Pair, p: &[f64; 4]) -> f64 {
         - invert_dn(q.real[1], q.rho2[1], p).max(lo).ln()
 }
 
-/// Mean squared log ratio of the two inverted radiances at `p` of the `pairs` whose fold passes `use_fold`,
-/// with their number.
-pub fn pair_mse(pairs: &[Pair], p: &[f64; 4], use_fold: &dyn Fn(usize) -> bool) -> (f64, usize) {
+/// Mean squared log ratio of the two inverted radiances at `p` of the `pairs` whose fold passes
+/// `use_fold` (0 without any).
+pub fn pair_mse(pairs: &[Pair], p: &[f64; 4], use_fold: &dyn Fn(usize) -> bool) -> f64 {
     let (sum, n) = pairs
         .iter()
         .filter(|q| use_fold(q.fold))
         .fold((0.0, 0usize), |(s, n), q| {
             (s + pair_error(q, p).powi(2), n + 1)
         });
-    (if n == 0 { 0.0 } else { sum / n as f64 }, n)
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
 }
 
 /// Fewest overlap pairs for which they enter a fit.
