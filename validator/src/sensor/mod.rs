@@ -29,7 +29,9 @@ use regolith_format::frames::{quat_from_axis_angle, Pose};
 use crate::render::{AlbedoGrid, Geometry, Light, RenderOptions};
 
 pub use blur::gaussian_blur;
-pub use effects::{distortion_shift, ParamRange, MIN_DISTORTION_SHIFT};
+pub use effects::{
+    distortion_shift, level_change_dn, ParamRange, MIN_DISTORTION_SHIFT, MIN_LEVEL_CHANGE_DN,
+};
 pub use image::quantise_u8;
 
 /// Ambient share of the light that [`SensorModel::render_options`] returns for a `shadows`
