@@ -43,7 +43,11 @@
 //! texture still shows its signal, overshoots on seed 102); and the smallest level or
 //! contrast change named (exposure, gamma) is about 5 DN RMS, because renders of laser DEMs
 //! are themselves a little darker and flatter than the real images (a radial falloff cannot
-//! mimic that, so vignetting is named from 3 DN²).
+//! mimic that, so vignetting is named from 3 DN²). Over a terrain's narrow intensity range a
+//! mild response curve and an exposure offset look alike; the black background tells them
+//! apart (an offset lifts it, see [`photometry::Samples::black_limit`]) from a curve of about
+//! 1.12 up: mini gammas of 1.15–1.23 are named (seeds 101, 102, 105, 111, 112), one of 1.10
+//! on two seeds of three.
 //! Parameters are as good as the views are many and as wide as the scene they show. From
 //! mini's two captures (four views) a vignetting strength comes out within 5 % alone and next
 //! to a response curve or a pose bias (seeds 101–103: −0.4, −1.0, −4.3 %; +2.0 and −0.7 % next
@@ -1045,27 +1049,42 @@ fn photometry_stage(
         "vignetting" => MIN_VIGNETTING_DN2,
         _ => MIN_PHOTOMETRIC_DN2,
     };
-    let Some(choice) = choose_with(&cands, min_share, &floor) else {
-        return scored(&cands);
-    };
-    let chosen = cands[choice.index].effects.clone();
-    let mut fit_set: Vec<&str> = chosen.clone();
-    fit_set.extend(&present);
-    with_level_nuisance(&mut fit_set);
     // An exposure's gain and offset come from the radiance-side fit (see
     // `photometry::fit_radiance`: fitted on DN they are attenuated, 0.66/0.73/0.60 for
-    // 0.76/0.93/0.76 on mini seeds 101-103, 0.73/0.92/0.69 on radiance). Without an exposure
-    // the DN fit is kept: there the attenuation has no free gain to go to, and on radiance a
-    // hidden vignetting of 0.2 under a gamma of 1.6 came out 0.12.
+    // 0.76/0.93/0.76 on mini seeds 101-103, 0.73/0.92/0.69 on radiance; and the DN fit's
+    // offset compensates the attenuation, lifting the black level 9-20 DN with nothing hidden).
+    // Without an exposure the DN fit is kept: there the attenuation has no free gain to go to,
+    // and on radiance a hidden vignetting of 0.2 under a gamma of 1.6 came out 0.12.
     // A vignetting's strength also rests on the overlap of the views (see `overlap`).
-    let by_radiance = fit_set.contains(&"exposure");
-    let fit_final = |use_fold: &(dyn Fn(usize) -> bool + Sync)| {
-        photometry::refit_with_overlap(&plain, &pairs, &fit_set, use_fold, by_radiance)
+    let fit_final = |set: &[&str], use_fold: &(dyn Fn(usize) -> bool + Sync)| {
+        let by_radiance = set.contains(&"exposure");
+        photometry::refit_with_overlap(&plain, &pairs, set, use_fold, by_radiance)
     };
-    let f = fit_final(&|_| true);
+    let black_limit = plain.black_limit();
+    // A chosen exposure whose fitted black level the background does not allow is a response
+    // curve (or another effect) in disguise: the sets with an exposure are then out.
+    let mut allowed = cands.clone();
+    let mut rejected_black = None;
+    let (choice, chosen, fit_set, f) = loop {
+        let Some(choice) = choose_with(&allowed, min_share, &floor) else {
+            return scored(&cands);
+        };
+        let chosen = allowed[choice.index].effects.clone();
+        let mut fit_set: Vec<&str> = chosen.clone();
+        fit_set.extend(&present);
+        with_level_nuisance(&mut fit_set);
+        let f = fit_final(&fit_set, &|_| true);
+        let lifted = black_limit.is_some_and(|l| photometry::black_level(&f.params) > l);
+        if chosen.contains(&"exposure") && lifted {
+            rejected_black = Some(photometry::black_level(&f.params));
+            allowed.retain(|c| !c.effects.contains(&"exposure"));
+            continue;
+        }
+        break (choice, chosen, fit_set, f);
+    };
     let p = f.params;
     let jack = jackknife(ctx.n_folds, &|hold| {
-        fit_final(&|fold| fold != hold).params.to_vec()
+        fit_final(&fit_set, &|fold| fold != hold).params.to_vec()
     });
     let std_err = honest_std_err(f.std_err, jack);
     let built = |name: &str| -> Option<(Effect, BTreeMap<String, f64>)> {
@@ -1125,11 +1144,19 @@ fn photometry_stage(
                 format!(
                     "held-out photometric MSE {:.1} DN² with no effect, {:.1} DN² with the chosen set{}",
                     base_err,
-                    cands[choice.index].cv_error,
-                    match witness {
-                        Some(w) if *name == "vignetting" => format!(
+                    allowed[choice.index].cv_error,
+                    match (witness, black_limit, rejected_black) {
+                        (Some(w), _, _) if *name == "vignetting" => format!(
                             "; a vignetting removes {:.0} % of the stereo overlap's held-out log ratio",
                             100.0 * w
+                        ),
+                        (_, Some(l), _) if *name == "exposure" => format!(
+                            "; black level {:.1} DN, the background allows {:.1}",
+                            photometry::black_level(&p),
+                            l
+                        ),
+                        (_, Some(l), Some(b)) if *name == "gamma" => format!(
+                            "; an exposure fitted instead put the black level at {b:.1} DN, the background allows {l:.1}"
                         ),
                         _ => String::new(),
                     }
@@ -1575,15 +1602,7 @@ mod tests {
     /// capture folds; the entry's radiance is ±20 % off (texture), which the pairs do not see.
     fn falloff_campaign(strength: f64) -> (photometry::Samples, Vec<overlap::Pair>) {
         let truth = [1.0, 0.0, strength, 1.0];
-        let dn = |rad: f64, rho2: f64| {
-            let one = photometry::Samples {
-                fold: vec![0],
-                real: vec![0.0],
-                radiance: vec![rad],
-                rho2: vec![rho2],
-            };
-            photometry::predict(&one, 0, &truth)
-        };
+        let dn = |rad: f64, rho2: f64| photometry::predict_dn(rad, rho2, &truth);
         let mut s = photometry::Samples::default();
         let mut pairs = Vec::new();
         for k in 0..2000 {

@@ -17,6 +17,10 @@
 //! eroded by 10 px (no sky mixes into the filtered values, and a silhouette misaligned by a few
 //! pixels does not count), where the real mean is neither black nor saturated. The real side is
 //! the mean of the frames, so noise enters only as variance.
+//!
+//! Where the render has no terrain (the background, eroded likewise), the real level bounds
+//! the black level `255 · max(0, o)^(1/γ)` from above ([`Samples::black_limit`]): the terrain's
+//! narrow intensity range alone cannot tell a mild response curve from a lifted offset.
 
 use crate::sensor::{gaussian_blur, Effect};
 
@@ -56,15 +60,19 @@ pub struct Analysis {
     pub real: Vec<f32>,
     /// The render's terrain mask eroded by [`ERODE`].
     pub eroded: Vec<bool>,
+    /// The render's background (no terrain) eroded by [`ERODE`].
+    pub background: Vec<bool>,
 }
 
 impl Analysis {
     /// The analysis images of view `v` with its render `p`.
     pub fn new(v: &GapView, p: &Prediction) -> Analysis {
         let (w, h) = (v.width, v.height);
+        let empty: Vec<bool> = p.mask.iter().map(|m| !m).collect();
         Analysis {
             real: gaussian_blur(&v.mean(), w, h, ANALYSIS_SIGMA),
             eroded: erode(&p.mask, w, h, ERODE),
+            background: erode(&empty, w, h, ERODE),
         }
     }
 }
@@ -85,6 +93,8 @@ pub struct Samples {
     pub radiance: Vec<f64>,
     /// Squared distance from the principal point over the squared farthest-corner distance.
     pub rho2: Vec<f64>,
+    /// Low-passed real DN where the render has no terrain (see [`Samples::black_limit`]).
+    pub background: Vec<f64>,
 }
 
 impl Samples {
@@ -96,6 +106,29 @@ impl Samples {
     /// No samples.
     pub fn is_empty(&self) -> bool {
         self.real.is_empty()
+    }
+
+    /// The highest black level (the DN of radiance 0: `255 · max(0, o)^(1/γ)`) the views
+    /// allow, DN: where the render has no terrain the camera sees either nothing (a black
+    /// sky, a dark curtain) or something the entry does not model, and its real level is at
+    /// least the black level (noise only lifts it); plus [`BLACK_MARGIN_DN`]. `None` with
+    /// fewer than [`MIN_BACKGROUND`] background samples.
+    ///
+    /// Over a terrain's narrow intensity range a mild response curve is almost a straight
+    /// line that misses the origin: `R^(1/1.18)` is `0.067 + 0.98 R` within 2 DN on radiances
+    /// 0.2–0.6, so an exposure offset of +0.06 fits it as well as the curve does (mini seeds
+    /// 111 and 112 named exposure for a hidden gamma of 1.23 and 1.18, held-out 16.29 vs
+    /// 16.31 DN² and 23.5 vs 26.0 DN²). The two differ at radiance 0: the offset lifts the
+    /// black background to 15 DN, the curve leaves it at the noise floor (0.8 DN). A bright
+    /// background (a lit wall) only loosens the bound.
+    pub fn black_limit(&self) -> Option<f64> {
+        if self.background.len() < MIN_BACKGROUND {
+            return None;
+        }
+        let mut v = self.background.clone();
+        let k = ((v.len() as f64 * BACKGROUND_QUANTILE) as usize).min(v.len() - 1);
+        let (_, q, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+        Some(*q + BLACK_MARGIN_DN)
     }
 
     /// Appends the samples of one view (`a` its [`Analysis`]), its radiance blurred by a
@@ -114,6 +147,9 @@ impl Samples {
             for x in (0..w).step_by(STRIDE) {
                 let i = y * w + x;
                 let r = f64::from(a.real[i]);
+                if a.background[i] {
+                    self.background.push(r);
+                }
                 if !a.eroded[i] || !usable(r) {
                     continue;
                 }
@@ -125,6 +161,23 @@ impl Samples {
             }
         }
     }
+}
+
+/// Fewest background samples for which they bound the black level.
+pub const MIN_BACKGROUND: usize = 200;
+/// Quantile of the background samples taken as the darkest level the camera shows.
+const BACKGROUND_QUANTILE: f64 = 0.1;
+/// Margin of [`Samples::black_limit`] over the background's level, DN: the black level a
+/// radiance-side exposure fit ([`fit_radiance`]) reads from a laser render's own level
+/// error. Mini, black sky (0.3–0.9 DN): with nothing hidden 0.6–9.6 DN (seeds 101–103, 108,
+/// 109), with an exposure hidden up to 7.4 DN over its true black level (seed 103: 9.3 for
+/// 1.9); an exposure passing for a response curve of 1.15–1.23 reads 12.3–19.8 DN, one of
+/// 1.10 8.4–14.9 DN (seeds 101, 102, 105, 111, 112): below ~1.12 the two are not told apart.
+pub const BLACK_MARGIN_DN: f64 = 10.0;
+
+/// The black level (DN) of the model at full parameters `p`: what radiance 0 maps to.
+pub fn black_level(p: &[f64; 4]) -> f64 {
+    predict_dn(0.0, 0.0, p)
 }
 
 /// `mask` eroded by a square of half-side `r`.
@@ -190,10 +243,14 @@ pub fn free(effects: &[&str]) -> Vec<usize> {
 
 /// Predicted DN of sample `i` at full parameters `p`.
 pub fn predict(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
-    let rad = s.radiance[i];
+    predict_dn(s.radiance[i], s.rho2[i], p)
+}
+
+/// Predicted DN of radiance `rad` at normalised squared radius `rho2` at full parameters `p`.
+pub(super) fn predict_dn(rad: f64, rho2: f64, p: &[f64; 4]) -> f64 {
     let strength = p[2].clamp(0.0, 0.999_999);
     let c = (1.0 - strength).powf(-0.5) - 1.0;
-    let v = 1.0 / (1.0 + c * s.rho2[i]).powi(2);
+    let v = 1.0 / (1.0 + c * rho2).powi(2);
     let e = (p[0] * v * rad + p[1]).max(0.0);
     255.0
         * if (p[3] - 1.0).abs() < 1e-12 {
@@ -242,7 +299,7 @@ pub fn fit(
     effects: &[&str],
     use_fold: &(dyn Fn(usize) -> bool + Sync),
 ) -> PhotometricFit {
-    fit_by(s, effects, use_fold, &dn_error, None)
+    fit_by(s, effects, use_fold, false, None)
 }
 
 fn dn_error(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
@@ -264,7 +321,7 @@ pub fn fit_radiance(
     effects: &[&str],
     use_fold: &(dyn Fn(usize) -> bool + Sync),
 ) -> PhotometricFit {
-    fit_by(s, effects, use_fold, &radiance_error, None)
+    fit_by(s, effects, use_fold, true, None)
 }
 
 /// Log ratio of the radiances the two views' real DN invert to at `p` (0 for the true model).
@@ -304,12 +361,7 @@ pub fn refit_with_overlap(
     use_fold: &(dyn Fn(usize) -> bool + Sync),
     by_radiance: bool,
 ) -> PhotometricFit {
-    let residual: &Residual = if by_radiance {
-        &radiance_error
-    } else {
-        &dn_error
-    };
-    let first = fit_by(s, effects, use_fold, residual, None);
+    let first = fit_by(s, effects, use_fold, by_radiance, None);
     let used: Vec<Pair> = pairs.iter().filter(|q| use_fold(q.fold)).copied().collect();
     if !effects.contains(&"vignetting") || used.len() < MIN_PAIRS {
         return first;
@@ -324,27 +376,26 @@ pub fn refit_with_overlap(
         return first;
     }
     let weight = first.mse.sqrt() / rms_pairs;
-    let second = fit_by(s, effects, use_fold, residual, Some((&used, weight)));
-    let (mut sum, mut n) = (0.0, 0usize);
-    for i in (0..s.len()).filter(|&i| use_fold(s.fold[i])) {
-        sum += residual(s, i, &second.params).powi(2);
-        n += 1;
-    }
-    PhotometricFit {
-        mse: if n == 0 { 0.0 } else { sum / n as f64 },
-        ..second
-    }
+    fit_by(s, effects, use_fold, by_radiance, Some((&used, weight)))
 }
 
 type Residual = dyn Fn(&Samples, usize, &[f64; 4]) -> f64 + Sync;
 
+/// Fits `effects` on the samples of `use_fold` by the DN error (or the radiance error,
+/// `by_radiance`), with the overlap pairs (and their weight) as a second set of residuals. The
+/// returned `mse` is of the samples alone.
 fn fit_by(
     s: &Samples,
     effects: &[&str],
     use_fold: &(dyn Fn(usize) -> bool + Sync),
-    residual: &Residual,
+    by_radiance: bool,
     overlap: Option<(&[Pair], f64)>,
 ) -> PhotometricFit {
+    let residual: &Residual = if by_radiance {
+        &radiance_error
+    } else {
+        &dn_error
+    };
     let idx = free(effects);
     let rows: Vec<usize> = (0..s.len()).filter(|&i| use_fold(s.fold[i])).collect();
     let expand = |q: &[f64]| {
@@ -376,10 +427,12 @@ fn fit_by(
     for (&i, e) in idx.iter().zip(&sol.std_err) {
         std_err[i] = *e;
     }
+    let params = expand(&sol.params);
+    let sum: f64 = rows.iter().map(|&i| residual(s, i, &params).powi(2)).sum();
     PhotometricFit {
-        params: expand(&sol.params),
+        params,
         std_err,
-        mse: sol.sse / sol.n.max(1) as f64,
+        mse: sum / rows.len().max(1) as f64,
     }
 }
 
@@ -401,6 +454,42 @@ pub fn mse(s: &Samples, p: &[f64; 4], use_fold: &dyn Fn(usize) -> bool) -> f64 {
 mod tests {
     use super::*;
 
+    /// A mild response curve over a terrain's narrow radiance range, with the entry's texture
+    /// errors: an exposure offset mimics it, and its black level gives it away.
+    #[test]
+    fn a_dark_background_tells_a_mild_response_curve_from_an_offset() {
+        let campaign = |truth: [f64; 4]| {
+            let mut s = Samples::default();
+            for k in 0..3000 {
+                let rad = 0.2 + 0.4 * ((k as f64 * 0.37).sin() * 0.5 + 0.5);
+                s.fold.push(k % 2);
+                s.real.push(predict_dn(rad, 0.0, &truth));
+                s.radiance
+                    .push(rad * (1.0 + 0.03 * (k as f64 * 2.71).sin()));
+                s.rho2.push(0.5);
+            }
+            // The sky reads the noise floor.
+            s.background = (0..MIN_BACKGROUND).map(|k| 0.5 + 0.01 * k as f64).collect();
+            s
+        };
+        let curve = campaign([1.0, 0.0, 0.0, 1.18]);
+        let limit = curve.black_limit().expect("enough background");
+        assert!((limit - (0.5 + 0.01 * 20.0 + BLACK_MARGIN_DN)).abs() < 1e-9);
+        let mimic = fit_radiance(&curve, &["exposure"], &|_| true);
+        assert!(black_level(&mimic.params) > limit, "{:?}", mimic.params);
+        assert!(fit_radiance(&curve, &["gamma"], &|_| true).mse < mimic.mse);
+        // A real exposure with a small positive offset stays under the bound.
+        let exposed = campaign([0.8, 0.01, 0.0, 1.0]);
+        let fitted = fit_radiance(&exposed, &["exposure"], &|_| true);
+        assert!(black_level(&fitted.params) < limit, "{:?}", fitted.params);
+        // A bright background (a lit wall) allows it; too few samples bound nothing.
+        let mut lit = curve.clone();
+        lit.background = vec![120.0; MIN_BACKGROUND];
+        assert!(black_level(&mimic.params) < lit.black_limit().expect("a bound"));
+        lit.background.pop();
+        assert_eq!(lit.black_limit(), None);
+    }
+
     /// A terrain whose entry is too bright towards the image's edge (the far terrain), with
     /// texture errors of its own: the samples alone take part of the falloff for the entry's
     /// error, the overlap does not.
@@ -408,15 +497,7 @@ mod tests {
     fn overlap_pairs_remove_a_radial_error_of_the_entry() {
         let truth = [0.9, 0.0, 0.3, 1.0];
         let radiance = |k: usize| 0.3 + 0.4 * ((k as f64 * 0.37).sin() * 0.5 + 0.5);
-        let dn = |rad: f64, rho2: f64| {
-            let s = Samples {
-                fold: vec![0],
-                real: vec![0.0],
-                radiance: vec![rad],
-                rho2: vec![rho2],
-            };
-            predict(&s, 0, &truth)
-        };
+        let dn = |rad: f64, rho2: f64| predict_dn(rad, rho2, &truth);
         let mut s = Samples::default();
         let mut pairs = Vec::new();
         for k in 0..2000 {
