@@ -3,10 +3,11 @@
 //! hidden; each is compiled and `gap` runs on its finest laser entry. Prints one line per case
 //! (hidden → named, fitted vs true parameters, gap before → after) and the matrix.
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS]`
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
 //! locations per campaign, default the preset's 2, `-` for it; `CAMERAS`: comma-separated
-//! cameras to examine, e.g. `navcam_left` for a lone camera, default all).
+//! cameras to examine, e.g. `navcam_left` for a lone camera, default (or `-`) all; `PARAMS`:
+//! comma-separated hidden-effect parameters set rather than drawn, e.g. `gamma.gamma=1.15`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::Path;
@@ -28,6 +29,11 @@ fn main() {
             .map(|s| s.parse().unwrap()),
         cameras: args
             .get(4)
+            .filter(|s| *s != "-")
+            .map(|s| s.split(',').map(String::from).collect())
+            .unwrap_or_default(),
+        effect_params: args
+            .get(5)
             .map(|s| s.split(',').map(String::from).collect())
             .unwrap_or_default(),
     };

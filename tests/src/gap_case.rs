@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
 
-use regolith_corpus::effects::HiddenSpec;
+use regolith_corpus::effects::{apply_param, HiddenSpec};
 use regolith_corpus::presets::Preset;
 use regolith_corpus::{generate, GenerateOptions};
 use regolith_reader::{Database, Writer};
@@ -118,6 +118,9 @@ pub struct Setup {
     /// Only these cameras are examined (all when empty): `["navcam_left"]` runs the workflow as
     /// for a lone camera, without stereo pairs.
     pub cameras: Vec<String>,
+    /// Hidden-effect parameters set rather than drawn, as `corpus generate --effect-param`
+    /// takes them (`"gamma.gamma=1.15"`).
+    pub effect_params: Vec<String>,
 }
 
 /// Runs one case in `root/<label>-<seed>` (replaced if present).
@@ -129,12 +132,16 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
     let dir = root.join(format!("{label}-{seed}"));
     let _ = std::fs::remove_dir_all(&dir);
     let camp = dir.join("camp");
+    let mut specs: Vec<HiddenSpec> = hidden.iter().map(|h| HiddenSpec::named(h)).collect();
+    for arg in &setup.effect_params {
+        apply_param(&mut specs, arg).unwrap();
+    }
     let opts = GenerateOptions {
         preset: Preset::Mini,
         seed,
         full: false,
         captures: setup.captures,
-        hidden: hidden.iter().map(|h| HiddenSpec::named(h)).collect(),
+        hidden: specs,
     };
     generate(&opts, &camp, &|_, _| {}).unwrap();
     let c = regolith_compiler::ingest::campaign::load(&camp).unwrap();

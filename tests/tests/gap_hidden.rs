@@ -299,6 +299,34 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
     );
 }
 
+/// A mild response curve (1.15) is almost a straight line over a terrain's intensities, and
+/// an exposure offset of ~0.05 fits it better held out; the black sky, which the offset would
+/// lift to ~13 DN, tells them apart.
+#[test]
+fn a_mild_response_curve_is_named_gamma_not_an_exposure() {
+    let root = tempfile::tempdir().unwrap();
+    let (mut bad, mut lines) = (Vec::new(), Vec::new());
+    let mut matrix = Confusion::default();
+    let hidden = ["gamma"];
+    let setup = Setup {
+        effect_params: vec!["gamma.gamma=1.15".into()],
+        ..Setup::default()
+    };
+    for seed in SEEDS {
+        let r = run_case(root.path(), "gamma", seed, &hidden, &setup);
+        lines.push(r.line("gamma 1.15", seed));
+        let case = Case {
+            label: "gamma",
+            seed,
+            hidden: &hidden,
+            lone: false,
+        };
+        judge(&r, &case, &mut matrix, &mut lines, &mut bad);
+    }
+    println!("{}", lines.join("\n"));
+    assert!(bad.is_empty(), "{}\n\n{}", bad.join("\n"), lines.join("\n"));
+}
+
 #[test]
 fn a_pose_bias_seen_from_six_capture_locations_is_within_3_mm_and_0_1_degrees_of_roll() {
     let root = tempfile::tempdir().unwrap();
