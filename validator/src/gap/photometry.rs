@@ -183,21 +183,28 @@ pub fn black_level(p: &[f64; 4]) -> f64 {
     predict_dn(0.0, 0.0, p)
 }
 
-/// `mask` eroded by a square of half-side `r`.
+/// `mask` eroded by a square of half-side `r` (the window clipped at the image border): a
+/// pixel stays only if every pixel of its window is set. Separable, with running counts, so
+/// the cost does not grow with `r`.
 pub fn erode(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    // Along one line of `n` values at `at(i)`: whether each window [i − r, i + r] is all set.
+    let line = |n: usize, at: &dyn Fn(usize) -> bool, out: &mut dyn FnMut(usize, bool)| {
+        let mut prefix = vec![0usize; n + 1];
+        for i in 0..n {
+            prefix[i + 1] = prefix[i] + usize::from(at(i));
+        }
+        for i in 0..n {
+            let (a, b) = (i.saturating_sub(r), (i + r).min(n - 1));
+            out(i, prefix[b + 1] - prefix[a] == b - a + 1);
+        }
+    };
     let mut rows = vec![false; w * h];
     for y in 0..h {
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
-            rows[y * w + x] = (a..=b).all(|xx| mask[y * w + xx]);
-        }
+        line(w, &|x| mask[y * w + x], &mut |x, v| rows[y * w + x] = v);
     }
     let mut out = vec![false; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
-            out[y * w + x] = (a..=b).all(|yy| rows[yy * w + x]);
-        }
+    for x in 0..w {
+        line(h, &|y| rows[y * w + x], &mut |y, v| out[y * w + x] = v);
     }
     out
 }
@@ -456,6 +463,25 @@ pub fn mse(s: &Samples, p: &[f64; 4], use_fold: &dyn Fn(usize) -> bool) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn erode_keeps_a_pixel_only_if_its_whole_window_is_set() {
+        let (w, h) = (37, 23);
+        let mask: Vec<bool> = (0..w * h)
+            .map(|i| (i * 7919 % 13) != 0 && !(100..140).contains(&i))
+            .collect();
+        for r in [0, 1, 2, 5] {
+            let fast = erode(&mask, w, h, r);
+            for y in 0..h {
+                for x in 0..w {
+                    let naive = (y.saturating_sub(r)..=(y + r).min(h - 1)).all(|yy| {
+                        (x.saturating_sub(r)..=(x + r).min(w - 1)).all(|xx| mask[yy * w + xx])
+                    });
+                    assert_eq!(fast[y * w + x], naive, "r {r} at ({x}, {y})");
+                }
+            }
+        }
+    }
 
     /// A mild response curve over a terrain's narrow radiance range, with the entry's texture
     /// errors: an exposure offset mimics it, and its black level gives it away.
