@@ -83,14 +83,12 @@ pub const MIN_DISTORTION_SHIFT: f64 = 0.012;
 /// radiances (uniform on 0.15–0.45, where a lab terrain's shaded albedo lies: mini's real
 /// frames read 60–110 DN); `None` for other effects.
 pub fn level_change_dn(e: &Effect) -> Option<f64> {
-    let out = |r: f64| match *e {
-        Effect::Exposure { gain, offset } => gain * r + offset,
-        Effect::Gamma { gamma } => r.powf(1.0 / gamma),
-        _ => r,
+    let (gain, offset, gamma) = match *e {
+        Effect::Exposure { gain, offset } => (gain, offset, 1.0),
+        Effect::Gamma { gamma } => (1.0, 0.0, gamma),
+        _ => return None,
     };
-    if !matches!(e, Effect::Exposure { .. } | Effect::Gamma { .. }) {
-        return None;
-    }
+    let out = |r: f64| (gain * r + offset).powf(1.0 / gamma);
     let n = 256;
     let mean_sq = (0..n)
         .map(|i| {
