@@ -24,8 +24,11 @@
 //! then free, any lower level with a sharper edge fits as well, and they read as steps (mini
 //! seed 107, exposure alone: a real edge variance of 0.001 px² against the render's 0.039). A
 //! small blur next to such an offset is missed (the same seed: 0.52 px). Fixing the sky level
-//! at the render's did not recover it (0.19 px); a sky level shared by all profiles of a view
-//! may.
+//! at the render's did not recover it (0.19 px). Nor does one sky level shared by every
+//! clipped profile, fitted jointly with one σ (each profile its own step and position): on
+//! seed 107 it read 0.59 px, but on a synthetic dark edge with pixel-scale texture the shared
+//! level ran to the search's bound (−60 DN for −8) whatever the σ, so the σ it gave was the
+//! texture's, not the edge's.
 
 use super::lsq::{solve, Problem};
 use super::views::ImagePair;

@@ -383,13 +383,28 @@ impl<'a> Ctx<'a> {
                 .map(|v| predict(&scene, &self.light, v, model, self.supersample).radiance)
                 .collect::<Vec<_>>()
         });
-        let mut m = measure::measure(&self.views, preds, model, shadow, detailed.as_deref());
-        if let Geometry::Heightfield { grid, albedo } = self.geometry {
+        let inputs = match self.geometry {
+            Geometry::Heightfield { grid, albedo } => {
+                Some(TextureInputs::new(self, grid, albedo, model))
+            }
+            _ => None,
+        };
+        let shading: Option<Vec<&[f32]>> = inputs
+            .as_ref()
+            .map(|t| t.flat.iter().map(|p| p.radiance.as_slice()).collect());
+        let mut m = measure::measure(
+            &self.views,
+            preds,
+            model,
+            shadow,
+            detailed.as_deref(),
+            shading.as_deref(),
+        );
+        if let (Geometry::Heightfield { albedo, .. }, Some(inputs)) = (self.geometry, &inputs) {
             let texture = match &detailed_geometry {
                 Some(Geometry::Heightfield { albedo, .. }) => albedo,
                 _ => albedo,
             };
-            let inputs = TextureInputs::new(self, grid, albedo, model);
             m.texture_band_log_ratio = texture::band_power_log_ratio(&inputs.views(self), texture);
         }
         m

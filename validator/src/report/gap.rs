@@ -2,9 +2,11 @@
 //! offline page (`index.html` + PNG charts) with the same chart helpers as the validation report.
 //!
 //! Charts: the residual ratio real/render by normalised image radius (vignetting shows as a
-//! falling curve that the model flattens), real against rendered intensity (exposure and the
-//! response curve bend it away from the diagonal), the spectrum log-ratio per band (blur and
-//! noise tilt it), and the held-out error of every candidate set per stage (why a set won).
+//! falling curve that the model flattens), the same by the terrain's illumination (a shading
+//! error of the entry tilts it), real against rendered intensity (exposure and the response
+//! curve bend it away from the diagonal), the spectrum log-ratio per band (blur and noise tilt
+//! it), the frames' noise variance by intensity against the model's, and the held-out error of
+//! every candidate set per stage (why a set won).
 
 use std::path::{Path, PathBuf};
 
@@ -67,6 +69,36 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
         "mean ratio",
         &before_after(b, a, |m| bins(&m.residual_by_radius)),
     )?;
+    let by_light = !b.residual_by_illumination.is_empty();
+    if by_light {
+        line_plot(
+            &dir.join("illumination.png"),
+            "Real / render by the terrain's illumination",
+            "illumination / its 99th percentile",
+            "mean ratio",
+            &before_after(b, a, |m| m.residual_by_illumination.clone()),
+        )?;
+    }
+    let has_noise = !b.noise_by_intensity.is_empty();
+    if has_noise {
+        let curve = |m: &Metrics, real: bool| -> Vec<(f64, f64)> {
+            m.noise_by_intensity
+                .iter()
+                .map(|&(dn, r, model)| (dn, if real { r } else { model }))
+                .collect()
+        };
+        line_plot(
+            &dir.join("noise.png"),
+            "Noise variance by intensity",
+            "DN",
+            "variance, DN²",
+            &[
+                Series::new("real frames", curve(b, true), palette(2)),
+                Series::new("model before", curve(b, false), palette(0)),
+                Series::new("model after", curve(a, false), palette(1)),
+            ],
+        )?;
+    }
     let mut intensity = before_after(b, a, |m| m.real_by_intensity.clone());
     intensity.push(Series::new(
         "identity",
@@ -175,6 +207,15 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
         Figure::new("intensity.png", "Real vs rendered intensity", 480),
         Figure::new("spectrum.png", "Spectrum log-ratio per band", 480),
     ];
+    if by_light {
+        figs.insert(
+            1,
+            Figure::new("illumination.png", "Residual ratio by illumination", 480),
+        );
+    }
+    if has_noise {
+        figs.push(Figure::new("noise.png", "Noise variance by intensity", 480));
+    }
     for (stage, cands) in &r.candidates {
         if cands.is_empty() {
             continue;
