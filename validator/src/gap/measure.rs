@@ -219,7 +219,7 @@ fn model_noise_variance(model: &SensorModel, dn: f64) -> f64 {
         .iter()
         .map(|e| match *e {
             crate::sensor::Effect::Noise { gain, read_sigma } => {
-                gain.max(0.0) * dn.max(0.0) + read_sigma * read_sigma
+                crate::sensor::image::noise_variance(gain, read_sigma, dn)
             }
             _ => 0.0,
         })

@@ -123,7 +123,7 @@ pub(crate) fn apply(
     for e in effects {
         if let Effect::Noise { gain, read_sigma } = *e {
             for px in img.iter_mut() {
-                let var = gain.max(0.0) * px.max(0.0) + read_sigma * read_sigma;
+                let var = noise_variance(gain, read_sigma, *px);
                 let z: f64 = StandardNormal.sample(&mut rng);
                 *px += var.sqrt() * z;
             }
@@ -138,6 +138,12 @@ pub(crate) fn apply(
         }
     }
     img.into_iter().map(|v| v as f32).collect()
+}
+
+/// Variance (DN²) of the `noise` effect at signal `dn` (DN, before the response curve): shot
+/// noise `gain · dn` plus read noise.
+pub fn noise_variance(gain: f64, read_sigma: f64, dn: f64) -> f64 {
+    gain.max(0.0) * dn.max(0.0) + read_sigma * read_sigma
 }
 
 #[cfg(test)]
