@@ -331,6 +331,13 @@ fn the_demo_finds_its_hidden_vignetting_and_shrinks_the_gap() {
     let fitted = gap["named"][0]["params"]["strength"].as_f64().unwrap();
     assert_eq!(gap["named"][0]["effect"], "vignetting");
     assert!((fitted - truth).abs() < 0.05 * truth, "{fitted} vs {truth}");
+    // A falloff of the camera: each capture location alone finds about the same.
+    let per_capture = gap["named"][0]["per_capture"].as_array().unwrap();
+    assert_eq!(per_capture.len(), 2, "{per_capture:?}");
+    for c in per_capture {
+        let s = c["params"]["strength"].as_f64().unwrap();
+        assert!((s - truth).abs() < 0.15 * truth, "{c}: {s} vs {truth}");
+    }
     assert!(gap["gap_after"].as_f64().unwrap() < gap["gap_before"].as_f64().unwrap());
     assert!(gap["applied"].as_str().unwrap().ends_with("+gap.1"));
 }

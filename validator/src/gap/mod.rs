@@ -177,6 +177,33 @@ pub struct Named {
     pub stage: String,
     /// What showed it.
     pub evidence: String,
+    /// The effect fitted on each capture location's views alone (geometry and photometry, two
+    /// captures or more): an effect fixed to the camera comes out the same in every capture,
+    /// within the entry's own error there; a pose or lighting error of one capture does not.
+    pub per_capture: Vec<CaptureParams>,
+}
+
+/// An effect's parameters fitted on one capture location's views alone.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CaptureParams {
+    /// The capture (the camera, when the views hold one capture).
+    pub capture: String,
+    /// Fitted parameters.
+    pub params: BTreeMap<String, f64>,
+}
+
+impl CaptureParams {
+    /// `e`'s parameters, fitted on the views of `capture`.
+    fn new(capture: &str, e: &Effect) -> CaptureParams {
+        CaptureParams {
+            capture: capture.to_string(),
+            params: e
+                .params()
+                .into_iter()
+                .map(|(k, v)| (k.to_string(), v))
+                .collect(),
+        }
+    }
 }
 
 /// One scored candidate subset of a stage.
@@ -410,6 +437,22 @@ impl<'a> Ctx<'a> {
         m
     }
 
+    /// The name of each fold: its capture (its camera, when the views hold one capture).
+    fn fold_names(&self) -> Vec<String> {
+        (0..self.n_folds)
+            .map(|k| {
+                let v = self.views.iter().zip(&self.folds).find(|(_, f)| **f == k);
+                v.map_or_else(String::new, |(v, _)| {
+                    if self.n_folds >= 2 && self.views.iter().any(|w| w.capture != v.capture) {
+                        v.capture.clone()
+                    } else {
+                        v.camera.clone()
+                    }
+                })
+            })
+            .collect()
+    }
+
     fn predict_all(&self, model: &SensorModel) -> Vec<Prediction> {
         self.predict_sampled(model, self.supersample)
     }
@@ -452,6 +495,7 @@ fn named(
         explained_fraction: share,
         stage: stage.to_string(),
         evidence,
+        per_capture: Vec::new(),
     }
 }
 
@@ -766,6 +810,19 @@ fn geometry_stage(
     {
         return scored(&cands);
     }
+    // Per capture: the first pass (before a pose bias's refinement) on that capture's samples
+    // and pairs alone.
+    let names = ctx.fold_names();
+    let per_fold: Vec<(String, SensorModel)> = if ctx.n_folds >= 2 {
+        (0..ctx.n_folds)
+            .map(|k| {
+                let q = fit_levels(joint, &set, terms, &|o, imgs| imgs[o.view].fold == k).params;
+                (names[k].clone(), with_geometry(model, &set, &q))
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     *model = current;
     let base_err = cands
         .iter()
@@ -779,7 +836,7 @@ fn geometry_stage(
         let Some(e) = model.effects.iter().find(|x| x.name() == *name).copied() else {
             continue;
         };
-        out.push(named(
+        let mut n = named(
             &e,
             errs,
             *share,
@@ -793,7 +850,15 @@ fn geometry_stage(
                     w.before, w.after, w.weight
                 ))
             ),
-        ));
+        );
+        n.per_capture = per_fold
+            .iter()
+            .filter_map(|(c, m)| {
+                let e = m.effects.iter().find(|x| x.name() == *name)?;
+                Some(CaptureParams::new(c, e))
+            })
+            .collect();
+        out.push(n);
     }
     scored(&cands)
 }
@@ -1108,19 +1173,23 @@ fn photometry_stage(
         fit_final(&fit_set, &|fold| fold != hold).params.to_vec()
     });
     let std_err = honest_std_err(f.std_err, jack);
-    let built = |name: &str| -> Option<(Effect, BTreeMap<String, f64>)> {
-        let (e, idx): (Effect, &[usize]) = match name {
+    // The effect `name` at full parameters `q`, and the indices of its parameters.
+    let effect_at = |name: &str, q: &[f64; 4]| -> Option<(Effect, &'static [usize])> {
+        Some(match name {
             "exposure" => (
                 Effect::Exposure {
-                    gain: p[0],
-                    offset: p[1],
+                    gain: q[0],
+                    offset: q[1],
                 },
                 &[0, 1],
             ),
-            "vignetting" => (Effect::Vignetting { strength: p[2] }, &[2]),
-            "gamma" => (Effect::Gamma { gamma: p[3] }, &[3]),
+            "vignetting" => (Effect::Vignetting { strength: q[2] }, &[2]),
+            "gamma" => (Effect::Gamma { gamma: q[3] }, &[3]),
             _ => return None,
-        };
+        })
+    };
+    let built = |name: &str| -> Option<(Effect, BTreeMap<String, f64>)> {
+        let (e, idx) = effect_at(name, &p)?;
         let names = photometry::PARAMS;
         Some((
             e,
@@ -1128,6 +1197,14 @@ fn photometry_stage(
                 .map(|&i| (names[i].to_string(), std_err[i]))
                 .collect(),
         ))
+    };
+    let fold_names = ctx.fold_names();
+    let per_fold: Vec<[f64; 4]> = if ctx.n_folds >= 2 {
+        (0..ctx.n_folds)
+            .map(|k| fit_final(&fit_set, &|fold| fold == k).params)
+            .collect()
+    } else {
+        Vec::new()
     };
     // A chosen effect whose every parameter is within SIGNIFICANCE standard errors of its
     // neutral value is not named: its held-out gain came from a level difference the final
@@ -1157,7 +1234,7 @@ fn photometry_stage(
         .map_or(0.0, |c| c.cv_error);
     for (name, share) in choice.explained.iter().filter(|(n, _)| significant(n)) {
         if let Some((e, errs)) = built(name) {
-            out.push(named(
+            let mut n = named(
                 &e,
                 errs,
                 *share,
@@ -1182,7 +1259,13 @@ fn photometry_stage(
                         _ => String::new(),
                     }
                 ),
-            ));
+            );
+            n.per_capture = fold_names
+                .iter()
+                .zip(&per_fold)
+                .filter_map(|(c, q)| Some(CaptureParams::new(c, &effect_at(name, q)?.0)))
+                .collect();
+            out.push(n);
         }
     }
     scored(&cands)

@@ -138,17 +138,37 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
                         _ => format!("{k} = {v:.4}"),
                     })
                     .collect();
+                let per_capture: Vec<String> = n
+                    .per_capture
+                    .iter()
+                    .map(|c| {
+                        let p: Vec<String> = c
+                            .params
+                            .iter()
+                            .map(|(k, v)| format!("{k} {v:.4}"))
+                            .collect();
+                        format!("{}: {}", c.capture, p.join(", "))
+                    })
+                    .collect();
                 vec![
                     Cell::new(n.effect.clone()),
                     Cell::new(params.join(", ")),
                     Cell::new(format!("{:.0} %", 100.0 * n.explained_fraction)),
                     Cell::new(n.stage.clone()),
                     Cell::new(n.evidence.clone()),
+                    Cell::new(per_capture.join("; ")),
                 ]
             })
             .collect();
         page.table(
-            &["effect", "parameters", "explains", "stage", "evidence"],
+            &[
+                "effect",
+                "parameters",
+                "explains",
+                "stage",
+                "evidence",
+                "fitted per capture",
+            ],
             &rows,
         );
     }
