@@ -4,9 +4,11 @@
 //! The workflow, per terrain entry, over every (capture, camera) view of the release:
 //! 1. **Measure** ([`measure`]) with the entry's current sensor model: the photometric residual
 //!    of the real frames' mean against the expected render (overall, by image radius, by
-//!    intensity, and in cast shadow of the campaign light), the radial power-spectrum log-ratio,
-//!    the noise variance by intensity (from the repeat frames), and the residual of the dense
-//!    geometric alignment. [`measure_model`] takes the same figures for any model: on a
+//!    intensity, by the terrain's illumination, and in cast shadow of the campaign light), the
+//!    radial power-spectrum log-ratio, the noise variance by intensity (from the repeat frames,
+//!    next to the model's), and the residual of the dense geometric alignment; per view as
+//!    well. Every geometric and photometric effect named is also fitted on each capture
+//!    location alone ([`Named::per_capture`]): an effect of the camera is the same in each. [`measure_model`] takes the same figures for any model: on a
 //!    synthetic campaign, the model with the true hidden effects gives the floor a fit can reach.
 //! 2. **Attribute**, in the order that keeps effects from masquerading as each other: geometry
 //!    first ([`geometry`]: `distortion`, `pose-bias` jointly, by dense alignment), then `blur`
