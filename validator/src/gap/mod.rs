@@ -8,8 +8,9 @@
 //!    radial power-spectrum log-ratio, the noise variance by intensity (from the repeat frames,
 //!    next to the model's), and the residual of the dense geometric alignment; per view as
 //!    well. Every geometric and photometric effect named is also fitted on each capture
-//!    location alone ([`Named::per_capture`]): an effect of the camera is the same in each. [`measure_model`] takes the same figures for any model: on a
-//!    synthetic campaign, the model with the true hidden effects gives the floor a fit can reach.
+//!    location alone ([`Named::per_capture`]): an effect of the camera is the same in each.
+//!    [`measure_model`] takes the same figures for any model: on a synthetic campaign, the
+//!    model with the true hidden effects gives the floor a fit can reach.
 //! 2. **Attribute**, in the order that keeps effects from masquerading as each other: geometry
 //!    first ([`geometry`]: `distortion`, `pose-bias` jointly, by dense alignment), then `blur`
 //!    from the width of the skyline edges ([`blur`]: a pixel fit would mistake the render's own
@@ -199,13 +200,17 @@ impl CaptureParams {
     fn new(capture: &str, e: &Effect) -> CaptureParams {
         CaptureParams {
             capture: capture.to_string(),
-            params: e
-                .params()
-                .into_iter()
-                .map(|(k, v)| (k.to_string(), v))
-                .collect(),
+            params: param_map(e),
         }
     }
+}
+
+/// `e`'s parameters by name.
+fn param_map(e: &Effect) -> BTreeMap<String, f64> {
+    e.params()
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
 }
 
 /// One scored candidate subset of a stage.
@@ -488,11 +493,7 @@ fn named(
 ) -> Named {
     Named {
         effect: e.name().to_string(),
-        params: e
-            .params()
-            .into_iter()
-            .map(|(k, v)| (k.to_string(), v))
-            .collect(),
+        params: param_map(e),
         std_err,
         explained_fraction: share,
         stage: stage.to_string(),
