@@ -7,43 +7,54 @@
 //! range noise) the PCA normal of the 16 nearest points left the per-point albedo off by
 //! 2.7 dB RMS, biased by −2.6 dB where it thought the beam was head-on and +2.3 dB where it
 //! thought it grazing; the texture showed it as speckle and as steps where one station's points
-//! take over from another's. The normal here is the PCA normal of all cleaned points in a
-//! square ground window of [`WINDOW_CELLS`]² cells of [`NORMAL_CELL_M`] (6 cm): hundreds of
+//! take over from another's. The normal here is that of the height plane fitted to all cleaned
+//! points in a square ground window of [`WINDOW_CELLS`]² cells of [`NORMAL_CELL_M`] (6 cm): hundreds of
 //! points at scan density, so range noise averages out, while the window stays below the size
 //! of the rocks whose shading the texture must not carry.
 //!
-//! Known limit, the window's size: range noise lies along the beam, so it adds the beam
-//! direction to the window's scatter and tilts the fitted plane towards containing the beam (by
-//! about `σ² sin i cos i / L²` for an in-plane spread `L²`); `cos i` then reads low and the
-//! albedo high, the more so the more grazing the beam. With this 6 cm window (8 mm range noise)
-//! the estec corpus's texture comes out 4.0 % brighter than the true albedo (median 2.2 %), from
-//! 2.6 % where the beam is head-on to 5.7 % where it grazes, and the cross-scan calibration takes
-//! the grazing far points' excess for a range slope (−0.071 dB/m for the instrument's −0.05); a
-//! response curve fitted by the gap workflow absorbs that level (estec seed 2: γ 1.968 for
-//! 2.033). A 10 cm window measured better on the texture itself — estec 1.5 % (median −0.4 %),
-//! slope −0.044 dB/m, stations agreeing 0.47 dB RMS instead of 0.51, that γ 2.012; mini's
-//! correlation with the true albedo 0.773/0.781 → 0.781/0.798 (seeds 101/103), its stations'
-//! disagreement 0.88–0.90 → 0.71 dB — but the smoother texture cost the gap workflow's dense
-//! alignment precision on mini (a lone camera's distortion 13 → 18 % off, seed 101's `dk1` with
-//! both cameras −5.1 → −7.1 %) and two weak vignettings next to another effect. Subtracting the
-//! expected noise scatter (`σ² Σ d dᵀ`, the beams `d`) from the window's moments instead moved
-//! the level monotonically with the assumed σ (+4.0 % at 0, −1 % at 5 mm, −6 % at 8 mm), so it
-//! needs σ measured, not assumed. 8, 12.5 and 14 cm windows: 2.4, 1.1 and 1.0 % on estec.
+//! Why a height plane (least squares of `z` on the ground position) and not the principal-
+//! component plane: range noise lies along the beam, but the window is chosen by the points'
+//! *noisy* ground positions, so within it the ground positions stay uniform and the noise shows
+//! only in `z`, independent of them — unbiased for a height regression, while a principal-
+//! component (total least squares) plane treats that `z` noise as spread and steepens every
+//! slope by about `σ_z² / L²` (`L²` the window's in-plane spread; 12 % for 8 mm of noise on a
+//! 60°-oblique slope in the unit test). On the estec corpus (seed 2, laser/0.015) the principal-
+//! component normal left the texture 4.0 % brighter than the true albedo (median 2.2 %), from
+//! 2.6 % head-on to 5.7 % grazing, and the cross-scan calibration took the far points' excess
+//! for a range slope of −0.071 dB/m (the instrument's: −0.05); a response curve fitted by the
+//! gap workflow absorbed that level (γ 1.968 for 2.033). The height plane: 1.7 % (median
+//! 0.07 %), −0.049 dB/m, correlation with the true albedo 0.875 → 0.877, γ 2.006. What remains
+//! grows with the distance from the stations (1.2 % within 2 m, 3.0 % at 5–7 m) and with
+//! grazing: a normal's random error raises `1 / cos i` on average (it is convex), the more the
+//! fewer points and the more grazing the beam. Tried: multiplying `1 / cos i` by
+//! `1 − Var(cos i) / cos² i`, `Var(cos i)` propagated from the height plane's slope covariance
+//! `s² (Xᵀ X)⁻¹`: estec 1.2 % (0.0 % within 2 m, 2.5 % at 5–7 m), γ 2.015, but mini's
+//! response curves then read +0.028 and +0.022 high (seed 101) — the residual `s²` holds the
+//! ground's roughness as well as the noise, so the correction overshoots on rough ground; it
+//! needs the range noise measured apart from the relief.
+//!
+//! Tried before: larger windows (8, 10, 12.5, 14 cm: 2.4, 1.5, 1.1, 1.0 % with the principal-
+//! component plane) smooth the texture, which cost the gap workflow's dense alignment on mini;
+//! subtracting an assumed beam-noise scatter `σ² Σ d dᵀ` from the window's moments
+//! over-corrected (−6 % at the true 8 mm), because within a window chosen by noisy position the
+//! noise is not spread along the beam.
 //!
 //! How: one pass bins the points by ground cell and keeps per cell the count, the sum and the
 //! second moments of the coordinates relative to the cell corner (z relative to the first
 //! point's z), so precision does not depend on how far the survey is from the origin. A cell's
 //! window moments are the sums of its neighbours' moments moved to its corner (exact: the
-//! parallel-axis shift), whose covariance's smallest eigenvector is the normal. Where points are
-//! sparse (far from every station) a window with fewer than [`MIN_WINDOW_POINTS`] points or no
-//! plane grows ring by ring up to [`MAX_WINDOW_CELLS`]² cells; past that, `albedo = ρ`. Cells are binned in fixed chunks merged in chunk order, so the result does
-//! not depend on the thread count. Near-vertical faces are seen through a 2.5-D window: their
-//! normal mixes the face with the ground around it; they are a small share of a terrain.
+//! parallel-axis shift), whose covariance gives the height plane. Where points are sparse (far
+//! from every station) a window with fewer than [`MIN_WINDOW_POINTS`] points or no plane (a
+//! footprint thinner than [`MIN_FOOTPRINT_RATIO`]) grows ring by ring up to
+//! [`MAX_WINDOW_CELLS`]² cells; past that, `albedo = ρ`. Cells are binned in fixed chunks merged
+//! in chunk order, so the result does not depend on the thread count. Near-vertical faces are
+//! seen through a 2.5-D window: their normal mixes the face with the ground around it; they are
+//! a small share of a terrain.
 
 use std::collections::HashMap;
 use std::ops::AddAssign;
 
-use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::geometry::bin_sums;
@@ -56,6 +67,9 @@ pub const WINDOW_CELLS: i64 = 3;
 pub const MAX_WINDOW_CELLS: i64 = 9;
 /// Points a window needs for a normal.
 pub const MIN_WINDOW_POINTS: u32 = 10;
+/// Smallest ratio of the window footprint's two ground spreads (eigenvalues of the points'
+/// x, y covariance) for a height plane.
+pub const MIN_FOOTPRINT_RATIO: f64 = 0.05;
 /// Floor of `cos i`: the gain `1 / cos i` is at most 5 (i ≈ 78°).
 pub const MIN_COS_INCIDENCE: f64 = 0.2;
 
@@ -100,7 +114,9 @@ impl Moments {
         }
     }
 
-    /// Unit normal of the least-squares plane, `None` without a plane.
+    /// Unit normal of the least-squares height plane `z = a x + b y + c` (ordinary least
+    /// squares of `z` on the ground position, module docs), `None` where the points' ground
+    /// footprint is not two-dimensional.
     fn normal(&self) -> Option<Vector3<f64>> {
         if self.n < 3 {
             return None;
@@ -108,26 +124,18 @@ impl Moments {
         let n = f64::from(self.n);
         let m = [self.s[0] / n, self.s[1] / n, self.s[2] / n];
         let c = |k: usize, a: usize, b: usize| self.ss[k] / n - m[a] * m[b];
-        let cov = Matrix3::new(
-            c(0, 0, 0),
-            c(1, 0, 1),
-            c(2, 0, 2),
-            c(1, 0, 1),
-            c(3, 1, 1),
-            c(4, 1, 2),
-            c(2, 0, 2),
-            c(4, 1, 2),
-            c(5, 2, 2),
-        );
-        let eig = SymmetricEigen::new(cov);
-        let mut order = [0usize, 1, 2];
-        order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
-        // A plane needs two clearly non-zero spreads; a line of points has one.
-        let (lmin, lmid) = (eig.eigenvalues[order[0]], eig.eigenvalues[order[1]]);
-        if !(lmid > 1e-12 && lmid > 4.0 * lmin.max(0.0)) {
+        let (xx, xy, yy, xz, yz) = (c(0, 0, 0), c(1, 0, 1), c(3, 1, 1), c(2, 0, 2), c(4, 1, 2));
+        // The footprint's smaller spread must be a fair share of the larger: a strip of points
+        // (a scan line, an occlusion edge) leaves the slope across it undetermined.
+        let det = xx * yy - xy * xy;
+        let half_trace = 0.5 * (xx + yy);
+        let small = half_trace - (half_trace * half_trace - det).max(0.0).sqrt();
+        if !(small > 1e-12 && small > MIN_FOOTPRINT_RATIO * (xx + yy - small)) {
             return None;
         }
-        let v = eig.eigenvectors.column(order[0]).into_owned();
+        let a = (yy * xz - xy * yz) / det;
+        let b = (xx * yz - xy * xz) / det;
+        let v = Vector3::new(-a, -b, 1.0).normalize();
         v.iter().all(|x| x.is_finite()).then_some(v)
     }
 }
@@ -271,6 +279,42 @@ mod tests {
             // 160 points per window, ±8 mm uniform noise: a few degrees at worst.
             assert!(worst < 6.0, "offset {offset:?}: worst {worst}°");
         }
+    }
+
+    /// A scanner's range noise lies along the beam; the ground cell a point is binned by is its
+    /// noisy position. On a slope seen obliquely (the beam 60° from vertical, 8 mm range noise)
+    /// the height-plane normal keeps the slope; a principal-component plane of the same windows
+    /// reads it 12 % steeper (module docs).
+    #[test]
+    fn range_noise_along_an_oblique_beam_does_not_tilt_the_normal() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (sx, sy) = (0.3, 0.0);
+        let beam = Vector3::new(60f64.to_radians().sin(), 0.0, -60f64.to_radians().cos());
+        let pts: Vec<[f64; 3]> = (0..80_000)
+            .map(|_| {
+                let x = rng.gen::<f64>() * 0.6;
+                let y = rng.gen::<f64>() * 0.6;
+                // Gaussian, 8 mm (Box–Muller).
+                let (u, w): (f64, f64) = (rng.gen::<f64>().max(1e-12), rng.gen());
+                let e = 0.008 * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * w).cos();
+                [x + e * beam.x, y + e * beam.y, sx * x + sy * y + e * beam.z]
+            })
+            .collect();
+        let normals = window_normals(&pts);
+        let (mut slope, mut n) = (0.0, 0.0);
+        // Away from the sample's border, where the noise decides which points are in.
+        let inside = |p: &[f64; 3]| p[0] > 0.1 && p[0] < 0.5 && p[1] > 0.1 && p[1] < 0.5;
+        for (p, v) in pts.iter().zip(&normals) {
+            if let (true, Some(v)) = (inside(p), v) {
+                slope += -v.x / v.z;
+                n += 1.0;
+            }
+        }
+        let slope = slope / n;
+        assert!(
+            (slope / sx - 1.0).abs() < 0.02,
+            "mean slope {slope} for {sx}"
+        );
     }
 
     #[test]

@@ -22,10 +22,11 @@
 //! - **Incidence correction** (`albedo`): `ρ` is relative to a white Lambertian target facing the
 //!   beam, so for a Lambertian surface it is `albedo · cos i`, with `i` the angle between the beam
 //!   and the surface normal — left alone, the texture would carry the scanner's own shading.
-//!   [`incidence`] divides it out per point of the *cleaned* cloud (outliers
-//!   would tilt normals), with the normal of a fixed 6 cm ground window of the merged cloud
+//!   [`incidence`] divides it out per point of the *cleaned* cloud (outliers would tilt
+//!   normals), with the height-plane normal of a fixed 6 cm ground window of the merged cloud
 //!   (several scans densify it, and it does not depend on any DEM) and the beam from the point's
-//!   scanner origin; see that module for why not the nearest neighbours.
+//!   scanner origin; see that module for why not the nearest neighbours nor a principal-component
+//!   plane.
 //! - **Cross-scan radiometric calibration**: [`radiometry`] fits the instrument's residual range
 //!   dependence of the reflectance and a per-scan offset on the overlaps and divides them out of
 //!   `reflectance` and `albedo`, so stations agree where they see the same ground.
@@ -355,7 +356,7 @@ fn select(all: MergedCloud, idx: &[usize]) -> MergedCloud {
 
 impl Stage for MergeClean {
     const NAME: &'static str = "merge.clean";
-    const VERSION: u32 = 3;
+    const VERSION: u32 = 4;
     const DESCRIPTION: &'static str =
         "Transform scans to ground, merge, remove statistical outliers, optional voxel thinning; keep reflectance and its incidence-corrected albedo, cross-calibrated between scans";
     type Input = [MergeScan];
@@ -371,6 +372,7 @@ impl Stage for MergeClean {
             "normal_window_cells": incidence::WINDOW_CELLS,
             "normal_max_window_cells": incidence::MAX_WINDOW_CELLS,
             "normal_min_points": incidence::MIN_WINDOW_POINTS,
+            "normal_min_footprint_ratio": incidence::MIN_FOOTPRINT_RATIO,
             "min_cos_incidence": MIN_COS_INCIDENCE,
             "radiometry_cell_m": radiometry::CELL_M,
             "radiometry_min_points": radiometry::MIN_POINTS,
