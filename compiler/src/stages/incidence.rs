@@ -8,9 +8,9 @@
 //! 2.7 dB RMS, biased by −2.6 dB where it thought the beam was head-on and +2.3 dB where it
 //! thought it grazing; the texture showed it as speckle and as steps where one station's points
 //! take over from another's. The normal here is that of the height plane fitted to all cleaned
-//! points in a square ground window of [`WINDOW_CELLS`]² cells of [`NORMAL_CELL_M`] (6 cm): hundreds of
-//! points at scan density, so range noise averages out, while the window stays below the size
-//! of the rocks whose shading the texture must not carry.
+//! points in a square ground window of [`WINDOW_CELLS`]² cells of [`NORMAL_CELL_M`] (6 cm):
+//! dozens to hundreds of points at scan density, so range noise averages out, while the window
+//! stays below the size of the rocks whose shading the texture must not carry.
 //!
 //! Why a height plane (least squares of `z` on the ground position) and not the principal-
 //! component plane: range noise lies along the beam, but the window is chosen by the points'
