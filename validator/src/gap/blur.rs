@@ -80,7 +80,7 @@ fn skyline(mask: &[bool], w: usize, h: usize) -> Vec<(usize, usize)> {
 }
 
 /// `erf` (Abramowitz & Stegun 7.1.26, |error| < 1.5e-7).
-fn erf(x: f64) -> f64 {
+pub(super) fn erf(x: f64) -> f64 {
     let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
     let poly = t
         * (0.254_829_592

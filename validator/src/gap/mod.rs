@@ -15,7 +15,11 @@
 //!    first ([`geometry`]: `distortion`, `pose-bias` jointly, by dense alignment), then `blur`
 //!    from the width of the skyline edges ([`blur`]: a pixel fit would mistake the render's own
 //!    noise for it), then photometry jointly with that PSF ([`photometry`]: `exposure`,
-//!    `vignetting`, `gamma`; a vignetting's strength also from where the stereo head's two
+//!    `vignetting`, `gamma`; the response curve and the black level first from the repeat
+//!    frames' noise over the dark background, a photon-transfer analysis the entry does not
+//!    enter ([`response`]): when it decides the curve, `gamma` is held at the curve it shows
+//!    (or linear) and an exposure's offset at the black level, and the render's samples choose
+//!    and fit the rest; a vignetting's strength also from where the stereo head's two
 //!    views see the same terrain at different radii, [`overlap`], which the entry's own
 //!    radiance errors do not bias, and which can witness a falloff too weak for the render's
 //!    samples to name alone), then cast `shadows` of the campaign light where they would fall
@@ -44,23 +48,31 @@
 //! −0.790 and −0.737 to −0.655 and −0.471, where the same campaigns with a faithful texture
 //! read −0.691 and −0.618 (the detail's spectrum, extrapolated from where the low-passed
 //! texture still shows its signal, overshoots on seed 102); and the smallest level or
-//! contrast change named (exposure, gamma) is about 5 DN RMS, because renders of laser DEMs
-//! are themselves a little darker and flatter than the real images (a radial falloff cannot
-//! mimic that, so vignetting is named from 3 DN²). Over a terrain's narrow intensity range a
-//! mild response curve and an exposure offset look alike; the black background tells them
-//! apart (an offset lifts it, see [`photometry::Samples::black_limit`]) from a curve of about
-//! 1.12 up: mini gammas of 1.15–1.23 are named (seeds 101, 102, 105, 111, 112), one of 1.10
-//! on two seeds of three. The other way round it does not help: an exposure that brightens
-//! with little offset (gain 1.11–1.14, mini seeds 106, 110, 112) was named a response curve
-//! of 1.10–1.24, whose held-out error was as low or lower (seed 106: 33.2 against 38.5 DN²),
-//! while gain 1.15 (seed 108) was named right. It is the two captures' disagreement: held out,
-//! exposure and gamma together did worse than the curve alone (38.4 DN²), the gain and offset
-//! fitted on one capture's render level not holding on the other's; from six capture
-//! locations (`corpus generate --captures 6`) the same three exposures were named right.
+//! contrast change the render names (an exposure; a response curve the noise cannot decide) is
+//! about 5 DN RMS, because renders of laser DEMs are themselves a little darker and flatter
+//! than the real images (a radial falloff cannot mimic that, so vignetting is named from
+//! 3 DN²). Over a terrain's narrow intensity range a mild response curve and an exposure look
+//! alike to the render: a curve of 1.18 is an offset of +0.06 within 2 DN, and exposures that
+//! brighten with little offset (gains 1.11–1.14, mini seeds 106, 110, 112) had a lower
+//! held-out error as curves of 1.10–1.24 from mini's two captures. The repeat frames' noise
+//! over the dark background tells them apart whatever the entry ([`response`]): on mini seeds
+//! 101–112 every hidden curve (1.18–2.39, and 1.10 and 1.06 set on seeds 101–103) is named
+//! within 0.008 of the truth, every exposure whose black level the background shows reads a
+//! linear response with its black level within 0.3 DN (its offset is then held there, and its
+//! gain, fitted to the render, comes out within 0.8 %: seeds 103, 105, 106, 108, 110, 112), and nothing
+//! hidden reads linear. The witness is silent without two frames per pose or a dark
+//! background, and undecided when an exposure clips the background to 0 (offsets under about
+//! −3 DN: seeds 101, 104, 107, 109, 111) or lifts it so far that the background's noise no
+//! longer shows the curve (+10.5 DN, seed 102); then the render decides as before, the dark
+//! background bounding an exposure's black level from above
+//! ([`photometry::Samples::black_limit`]: an offset that lifts it is a response curve in
+//! disguise), and the gains come out 3–8 % off.
 //! Parameters are as good as the views are many and as wide as the scene they show. From
 //! mini's two captures (four views) a vignetting strength comes out within 5 % alone and next
-//! to a response curve or a pose bias (seeds 101–103: −0.4, −1.0, −4.3 %; +2.0 and −0.7 % next
-//! to a gamma; it was +8, −9, −23 % and +20 % before the stereo overlap entered the fit), a
+//! to a response curve or a pose bias (seeds 101–103: −0.4, −1.0, −4.3 %; next to a gamma,
+//! held at the curve the noise shows, with a free gain, seeds 101–105: −0.5, −1.7, −3.8, +0.1,
+//! −1.0 %, where the curve fitted to the render alone left +1.7 to +6.0 %; it was +8, −9, −23 %
+//! and +20 % before the stereo overlap entered the fit), a
 //! distortion's displacement at 0.7 of the radius comes out −5.1 and −1.6 % off on the test's seeds
 //! (101, 102: dk1 −0.0447 for −0.0466, 0.0391 for 0.0385, −4.1 and +1.5 %, both radial terms fitted
 //! to the render and the stereo pairs together); over seeds 101–105 dk1 −4.1, +1.6, +11.4, +15.8
@@ -115,6 +127,7 @@ pub mod measure;
 pub mod noise;
 pub mod overlap;
 pub mod photometry;
+pub mod response;
 pub mod select;
 pub mod shadows;
 pub mod texture;
@@ -1028,6 +1041,36 @@ const SIGNIFICANCE: f64 = 2.0;
 /// out at 0.149 and above (six captures, seed 103: 0.149 for 0.173).
 const VIGNETTING_MIN_STRENGTH: f64 = 0.05;
 
+/// Smallest departure from a linear response the noise witness names, and the largest it
+/// calls linear (γ within 1 ± this). Hidden exposures read 0.979–1.024 (their black level
+/// off zero weakens the background's hold on the read noise), nothing hidden 0.98–1.01.
+const MIN_CURVE: f64 = 0.05;
+
+/// The response curve the repeat frames' noise shows ([`response`]) over every view with two
+/// frames, or over those of fold `only`.
+fn response_witness(
+    ctx: &Ctx<'_>,
+    analyses: &[photometry::Analysis],
+    only: Option<usize>,
+) -> Option<response::ResponseFit> {
+    let views: Vec<response::ResponseView<'_>> = ctx
+        .views
+        .iter()
+        .zip(analyses)
+        .zip(&ctx.folds)
+        .filter(|(_, f)| only.is_none_or(|k| **f == k))
+        .filter_map(|((v, a), &fold)| match v.frames.as_slice() {
+            [x, y, ..] => Some(response::ResponseView {
+                frames: [x.as_slice(), y.as_slice()],
+                background: &a.background,
+                fold: if only.is_some() { 0 } else { fold },
+            }),
+            _ => None,
+        })
+        .collect();
+    response::measure(&views, if only.is_some() { 1 } else { ctx.n_folds })
+}
+
 /// Frees the exposure gain in a final fit of `set` unless an exposure or a response curve is
 /// in it. The gain is a nuisance of every final fit: the entry's albedo and shading are never
 /// exactly at the camera's level, and an effect fitted without a free gain absorbs that level
@@ -1106,13 +1149,30 @@ fn photometry_stage(
     }
     let poses: Vec<_> = ctx.views.iter().map(|v| model.pose(&v.at)).collect();
     let pairs = overlap::pairs(&ctx.views, &preds, &analyses, &ctx.folds, &poses);
+    // The response curve the noise shows ([`response`]) decides the curve when it can: then
+    // `gamma` is no candidate of the render-side choice, which is made with the curve fixed.
+    let noise_curve = response_witness(ctx, &analyses, None);
+    let shows = noise_curve
+        .as_ref()
+        .and_then(|w| w.shows_curve(MIN_CURVE, SIGNIFICANCE));
+    let linear = plain.clone();
+    if shows == Some(true) {
+        plain.curve = noise_curve.as_ref().map(|w| w.gamma);
+    }
+    // The black level it measured with the curve it decided (an undecided curve leaves the
+    // linear level uncertain too).
+    plain.black = noise_curve
+        .as_ref()
+        .filter(|_| shows.is_some())
+        .map(|w| w.black_dn / 255.0);
+    let decided = |n: &&str| *n != "gamma" || shows.is_none();
     let absent: Vec<&'static str> = ["exposure", "vignetting", "gamma"]
         .into_iter()
-        .filter(|n| !has(model, n))
+        .filter(|n| !has(model, n) && decided(n))
         .collect();
     let present: Vec<&'static str> = ["exposure", "vignetting", "gamma"]
         .into_iter()
-        .filter(|n| has(model, n))
+        .filter(|n| has(model, n) && (*n != "gamma" || shows != Some(true)))
         .collect();
     let cv_of = |s: &photometry::Samples, set: &[&str]| {
         cross_validate(ctx.n_folds, &|hold| {
@@ -1127,7 +1187,7 @@ fn photometry_stage(
             all.extend(&present);
             Candidate {
                 cv_error: cv_of(&plain, &all),
-                k: photometry::free(&set).len(),
+                k: plain.free(&set).len(),
                 effects: set,
             }
         })
@@ -1155,6 +1215,48 @@ fn photometry_stage(
     // curve (or another effect) in disguise: the sets with an exposure are then out.
     let mut allowed = cands.clone();
     let mut rejected_black = None;
+    // The curve the noise shows: named with the render's held-out error with and without it.
+    if let (Some(true), Some(w)) = (shows, &noise_curve) {
+        let e = Effect::Gamma { gamma: w.gamma };
+        let was_absent = !has(model, "gamma");
+        upsert(model, e);
+        if was_absent {
+            let without = cv_of(&linear, &[]);
+            let with = cands
+                .iter()
+                .find(|c| c.effects.is_empty())
+                .map_or(without, |c| c.cv_error);
+            let mut n = named(
+                &e,
+                BTreeMap::from([("gamma".to_string(), w.gamma_se)]),
+                (without - with) / without.max(1e-12),
+                "photometry",
+                format!(
+                    "the repeat frames' noise: a response curve of {:.3} ± {:.3} (photon transfer over {} levels with the dark background's {} values; shot gain {:.4}, read noise {:.2} DN, black level {:.1} DN); held-out photometric MSE {:.1} DN² linear, {:.1} DN² with it",
+                    w.gamma,
+                    w.gamma_se,
+                    w.levels.len(),
+                    w.background_px,
+                    w.shot_gain,
+                    w.read_sigma,
+                    w.black_dn,
+                    without,
+                    with
+                ),
+            );
+            n.per_capture = ctx
+                .fold_names()
+                .iter()
+                .enumerate()
+                .filter(|_| ctx.n_folds >= 2)
+                .filter_map(|(k, c)| {
+                    let g = response_witness(ctx, &analyses, Some(k))?.gamma;
+                    Some(CaptureParams::new(c, &Effect::Gamma { gamma: g }))
+                })
+                .collect();
+            out.push(n);
+        }
+    }
     let (choice, chosen, fit_set, f) = loop {
         let Some(choice) = choose_with(&allowed, min_share, &floor) else {
             return scored(&cands);
@@ -1176,7 +1278,10 @@ fn photometry_stage(
     let jack = jackknife(ctx.n_folds, &|hold| {
         fit_final(&fit_set, &|fold| fold != hold).params.to_vec()
     });
-    let std_err = honest_std_err(f.std_err, jack);
+    let mut std_err = honest_std_err(f.std_err, jack);
+    if let (Some(_), Some(w)) = (plain.black, &noise_curve) {
+        std_err[1] = w.black_se / 255.0;
+    }
     // The effect `name` at full parameters `q`, and the indices of its parameters.
     let effect_at = |name: &str, q: &[f64; 4]| -> Option<(Effect, &'static [usize])> {
         Some(match name {

@@ -95,6 +95,12 @@ pub struct Samples {
     pub rho2: Vec<f64>,
     /// Low-passed real DN where the render has no terrain (see [`Samples::black_limit`]).
     pub background: Vec<f64>,
+    /// A response curve measured apart from the render ([`super::response`]): fits whose
+    /// effects do not free `gamma` hold it at this value instead of linear.
+    pub curve: Option<f64>,
+    /// The black level measured apart from the render ([`super::response`]), as an exposure
+    /// offset: fits with an `exposure` hold its offset at this value and free only its gain.
+    pub black: Option<f64>,
 }
 
 impl Samples {
@@ -106,6 +112,27 @@ impl Samples {
     /// No samples.
     pub fn is_empty(&self) -> bool {
         self.real.is_empty()
+    }
+
+    /// The full parameters of a fit of `effects` before its free ones are set: neutral, but
+    /// for the measured [`Samples::curve`] and, with an exposure, [`Samples::black`].
+    pub fn base(&self, effects: &[&str]) -> [f64; 4] {
+        let mut p = NEUTRAL;
+        if let Some(g) = self.curve {
+            p[3] = g;
+        }
+        if let (Some(b), true) = (self.black, effects.contains(&"exposure")) {
+            p[1] = b;
+        }
+        p
+    }
+
+    /// The parameters a fit of `effects` frees ([`free`]) less the measured ones.
+    pub fn free(&self, effects: &[&str]) -> Vec<usize> {
+        free(effects)
+            .into_iter()
+            .filter(|&i| !((i == 1 && self.black.is_some()) || (i == 3 && self.curve.is_some())))
+            .collect()
     }
 
     /// The highest black level (the DN of radiance 0: `255 · max(0, o)^(1/γ)`) the views
@@ -406,10 +433,11 @@ fn fit_by(
     } else {
         &dn_error
     };
-    let idx = free(effects);
+    let idx = s.free(effects);
+    let base = s.base(effects);
     let rows: Vec<usize> = (0..s.len()).filter(|&i| use_fold(s.fold[i])).collect();
     let expand = |q: &[f64]| {
-        let mut p = NEUTRAL;
+        let mut p = base;
         for (&i, v) in idx.iter().zip(q) {
             p[i] = *v;
         }
@@ -426,7 +454,7 @@ fn fit_by(
     let sol = solve(
         &Problem {
             residuals: &f,
-            start: idx.iter().map(|&i| NEUTRAL[i]).collect(),
+            start: idx.iter().map(|&i| base[i]).collect(),
             lower: idx.iter().map(|&i| bounds(i).0).collect(),
             upper: idx.iter().map(|&i| bounds(i).1).collect(),
             step: idx.iter().map(|&i| STEP[i]).collect(),
