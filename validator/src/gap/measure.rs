@@ -73,8 +73,8 @@ pub struct Metrics {
     /// nothing hidden, seed 103: 1.34 at 0.33, 1.03 at 0.95).
     pub residual_by_illumination: Vec<(f64, f64)>,
     /// `(DN, real variance, model variance)` per intensity bin, DN²: the real frames' noise
-    /// from frame pairs ([`noise::measure`]) and the model's noise at that level (before the
-    /// response curve). Empty without repeat frames.
+    /// from frame pairs ([`noise::measure`]) and the model's noise at that level (through its
+    /// response curve, [`super::response::output_variance`]). Empty without repeat frames.
     pub noise_by_intensity: Vec<(f64, f64, f64)>,
     /// log10 power ratio render/real per spectral band (8 bands to 0.5 cycles/px), mean over views.
     pub spectrum_log_ratio: Vec<f64>,
@@ -214,12 +214,20 @@ const MIN_BIN_PIXELS: usize = 50;
 
 /// The model's noise variance at `dn`, DN² (its `noise` effects, before the response curve).
 fn model_noise_variance(model: &SensorModel, dn: f64) -> f64 {
+    let gamma = model
+        .effects
+        .iter()
+        .find_map(|e| match *e {
+            crate::sensor::Effect::Gamma { gamma } => Some(gamma),
+            _ => None,
+        })
+        .unwrap_or(1.0);
     model
         .effects
         .iter()
         .map(|e| match *e {
             crate::sensor::Effect::Noise { gain, read_sigma } => {
-                crate::sensor::image::noise_variance(gain, read_sigma, dn)
+                super::response::output_variance(dn, gamma, gain, read_sigma)
             }
             _ => 0.0,
         })
@@ -439,18 +447,26 @@ mod tests {
     }
 
     #[test]
-    fn the_model_noise_is_shot_plus_read_and_nothing_without_noise() {
-        let noisy = SensorModel {
-            effects: vec![
-                Effect::Gamma { gamma: 2.2 },
-                Effect::Noise {
-                    gain: 0.3,
-                    read_sigma: 2.0,
-                },
-            ],
+    fn the_model_noise_is_shot_plus_read_through_the_curve_and_nothing_without_noise() {
+        let noise = Effect::Noise {
+            gain: 0.3,
+            read_sigma: 2.0,
         };
-        assert!((model_noise_variance(&noisy, 100.0) - 34.0).abs() < 1e-12);
-        assert!((model_noise_variance(&noisy, -5.0) - 4.0).abs() < 1e-12);
+        let linear = SensorModel {
+            effects: vec![noise],
+        };
+        assert!((model_noise_variance(&linear, 100.0) - 34.0).abs() < 1e-12);
+        assert!((model_noise_variance(&linear, -5.0) - 4.0).abs() < 1e-12);
+        // Under a curve of 2.2, output level 100 is linear signal 255 (100/255)^2.2 = 32.52,
+        // whose variance 0.3 · 32.04 + 4 the curve's slope (100/255)^(-1.2) / 2.2 scales.
+        let curved = SensorModel {
+            effects: vec![Effect::Gamma { gamma: 2.2 }, noise],
+        };
+        let t: f64 = 100.0 / 255.0;
+        let slope = t.powf(-1.2) / 2.2;
+        let expected = slope * slope * (0.3 * 255.0 * t.powf(2.2) + 4.0);
+        assert!((model_noise_variance(&curved, 100.0) - expected).abs() < 1e-9);
+        assert!((expected - 26.87).abs() < 0.01, "{expected}");
         let clean = model_noise_variance(&SensorModel::default(), 100.0);
         assert!(clean == 0.0 && clean.is_sign_positive());
     }

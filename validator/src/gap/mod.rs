@@ -27,7 +27,8 @@
 //!    refined), then `texture-lowpass` ([`texture`]: the texture's effective blur against the
 //!    real albedo gathered on the ground in the texture's cells, beyond what a faithful texture
 //!    of its cell size shows; heightfield entries),
-//!    then `noise` ([`noise`], from the repeat frames). Within a stage every subset of candidates is fitted and
+//!    then `noise` (from the repeat frames: on the linear signal by the photon-transfer fit
+//!    of [`response`] where the views show a dark background, else by [`noise`]). Within a stage every subset of candidates is fitted and
 //!    scored on held-out captures, and the subset is chosen jointly ([`select`]); an effect is
 //!    named only if it explains at least a set share of the stage's held-out error (geometry:
 //!    0.3 of that share and at least 0.04 band-pass units, because most of its error is texture
@@ -1047,22 +1048,22 @@ const VIGNETTING_MIN_STRENGTH: f64 = 0.05;
 const MIN_CURVE: f64 = 0.05;
 
 /// The response curve the repeat frames' noise shows ([`response`]) over every view with two
-/// frames, or over those of fold `only`.
-fn response_witness(
+/// frames and its dark `backgrounds`, or over those of fold `only`.
+fn response_witness<B: AsRef<[bool]>>(
     ctx: &Ctx<'_>,
-    analyses: &[photometry::Analysis],
+    backgrounds: &[B],
     only: Option<usize>,
 ) -> Option<response::ResponseFit> {
     let views: Vec<response::ResponseView<'_>> = ctx
         .views
         .iter()
-        .zip(analyses)
+        .zip(backgrounds)
         .zip(&ctx.folds)
         .filter(|(_, f)| only.is_none_or(|k| **f == k))
-        .filter_map(|((v, a), &fold)| match v.frames.as_slice() {
+        .filter_map(|((v, b), &fold)| match v.frames.as_slice() {
             [x, y, ..] => Some(response::ResponseView {
                 frames: [x.as_slice(), y.as_slice()],
-                background: &a.background,
+                background: b.as_ref(),
                 fold: if only.is_some() { 0 } else { fold },
             }),
             _ => None,
@@ -1151,7 +1152,8 @@ fn photometry_stage(
     let pairs = overlap::pairs(&ctx.views, &preds, &analyses, &ctx.folds, &poses);
     // The response curve the noise shows ([`response`]) decides the curve when it can: then
     // `gamma` is no candidate of the render-side choice, which is made with the curve fixed.
-    let noise_curve = response_witness(ctx, &analyses, None);
+    let backgrounds: Vec<&[bool]> = analyses.iter().map(|a| a.background.as_slice()).collect();
+    let noise_curve = response_witness(ctx, &backgrounds, None);
     let shows = noise_curve
         .as_ref()
         .and_then(|w| w.shows_curve(MIN_CURVE, SIGNIFICANCE));
@@ -1250,7 +1252,7 @@ fn photometry_stage(
                 .enumerate()
                 .filter(|_| ctx.n_folds >= 2)
                 .filter_map(|(k, c)| {
-                    let g = response_witness(ctx, &analyses, Some(k))?.gamma;
+                    let g = response_witness(ctx, &backgrounds, Some(k))?.gamma;
                     Some(CaptureParams::new(c, &Effect::Gamma { gamma: g }))
                 })
                 .collect();
@@ -1679,24 +1681,51 @@ fn noise_stage(ctx: &Ctx<'_>, preds: &[Prediction], model: &mut SensorModel, out
     let Some(fit) = noise::measure(&pairs) else {
         return;
     };
-    if fit.sigma_at_128 <= noise::NOISE_FLOOR_DN {
+    // The sensor's noise is on the linear signal, before the response curve: the photon
+    // transfer fit over the dark background ([`response`]) has it there; the level fit of
+    // `noise::measure` only without a curve.
+    let backgrounds: Vec<Vec<bool>> = ctx
+        .views
+        .iter()
+        .zip(preds)
+        .map(|(v, p)| {
+            let empty: Vec<bool> = p.mask.iter().map(|m| !m).collect();
+            photometry::erode(&empty, v.width, v.height, photometry::ERODE)
+        })
+        .collect();
+    let linear = response_witness(ctx, &backgrounds, None);
+    let sigma_at_128 = linear
+        .as_ref()
+        .map_or(fit.sigma_at_128, |w| w.sigma_at(128.0));
+    if sigma_at_128 <= noise::NOISE_FLOOR_DN {
         return;
     }
-    let e = Effect::Noise {
-        gain: fit.gain,
-        read_sigma: fit.read_sigma,
-    };
+    let e = linear.as_ref().map_or(
+        Effect::Noise {
+            gain: fit.gain,
+            read_sigma: fit.read_sigma,
+        },
+        |w| Effect::Noise {
+            gain: w.shot_gain,
+            read_sigma: w.read_sigma,
+        },
+    );
     upsert(model, e);
-    let share = 1.0 - (noise::NOISE_FLOOR_DN / fit.sigma_at_128).powi(2);
+    let share = 1.0 - (noise::NOISE_FLOOR_DN / sigma_at_128).powi(2);
     out.push(named(
         &e,
         BTreeMap::new(),
         share,
         "noise",
         format!(
-            "repeat frames: noise σ {:.2} DN at DN 128 > nominal {:.1} DN",
-            fit.sigma_at_128,
-            noise::NOISE_FLOOR_DN
+            "repeat frames: noise σ {:.2} DN at DN 128 > nominal {:.1} DN{}",
+            sigma_at_128,
+            noise::NOISE_FLOOR_DN,
+            if linear.is_some() {
+                " (photon transfer with the dark background: shot and read noise of the linear signal)"
+            } else {
+                ""
+            }
         ),
     ));
 }

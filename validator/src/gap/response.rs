@@ -30,6 +30,7 @@
 
 use super::blur::erf;
 use super::lsq::{solve, Problem};
+use crate::sensor::image::noise_variance;
 
 /// Width of a transfer-curve level bin, DN.
 const BIN_DN: f64 = 4.0;
@@ -155,6 +156,11 @@ pub struct ResponseFit {
 }
 
 impl ResponseFit {
+    /// The noise standard deviation at output level `c`, DN.
+    pub fn sigma_at(&self, c: f64) -> f64 {
+        output_variance(c, self.gamma, self.shot_gain, self.read_sigma).sqrt()
+    }
+
     /// Whether the fit shows a response curve (`Some(true)`), a linear response
     /// (`Some(false)`), or cannot tell (`None`): a curve is shown when γ is at least
     /// `min_curve` from 1 and `significance` standard errors; a linear response when it is
@@ -176,13 +182,22 @@ fn phi(z: f64) -> f64 {
     0.5 * (1.0 + erf(z / std::f64::consts::SQRT_2))
 }
 
-/// Predicted variance of output level `c` at `q = [γ, k, r, μ]`.
+/// Noise variance at output level `c` (before rounding) of a sensor with shot gain `k` and
+/// read noise `r` (linear DN) under the response curve `gamma`.
+pub fn output_variance(c: f64, gamma: f64, k: f64, r: f64) -> f64 {
+    let t = (c / 255.0).max(0.0);
+    // The curve's slope dc / dDN at `c`.
+    let s = if gamma == 1.0 {
+        1.0
+    } else {
+        t.max(1e-6).powf(1.0 - gamma) / gamma
+    };
+    s * s * noise_variance(k, r, 255.0 * t.powf(gamma))
+}
+
+/// Predicted variance of output level `c` at `q = [γ, k, r, μ]`, rounding included.
 fn level_variance(c: f64, q: &[f64]) -> f64 {
-    let (g, k, r) = (q[0], q[1], q[2]);
-    let t = (c / 255.0).max(1e-6);
-    let s = t.powf(1.0 - g) / g;
-    let linear = 255.0 * t.powf(g);
-    s * s * (k * linear + r * r) + 1.0 / 12.0
+    output_variance(c, q[0], q[1], q[2]) + 1.0 / 12.0
 }
 
 /// Probabilities of the output values `0..n` of the background at `q`, the last one holding
@@ -407,6 +422,25 @@ mod tests {
             assert!((f.read_sigma - 0.8).abs() < 0.1, "γ {gamma}: {f:?}");
             assert_eq!(f.shows_curve(0.05, 2.0), Some(true), "{f:?}");
         }
+    }
+
+    /// A strong noise under a curve: the shot and read noise come out on the linear signal,
+    /// where the sensor model applies them.
+    #[test]
+    fn reads_the_linear_noise_under_a_curve() {
+        let noise = Effect::Noise {
+            gain: 0.25,
+            read_sigma: 2.5,
+        };
+        let f = measure_model(vec![noise, Effect::Gamma { gamma: 1.6 }]).expect("a fit");
+        assert!((f.gamma - 1.6).abs() < 0.03, "{f:?}");
+        assert!((f.shot_gain / 0.25 - 1.0).abs() < 0.05, "{f:?}");
+        assert!((f.read_sigma / 2.5 - 1.0).abs() < 0.05, "{f:?}");
+        let level = 128.0;
+        let linear = 255.0 * (level / 255.0f64).powf(1.6);
+        let slope = (level / 255.0f64).powf(1.0 - 1.6) / 1.6;
+        let expected = slope * (0.25 * linear + 6.25).sqrt();
+        assert!((f.sigma_at(level) / expected - 1.0).abs() < 0.03, "{f:?}");
     }
 
     /// An exposure leaves the response linear and puts the black level where its offset is. A
