@@ -1217,13 +1217,32 @@ fn photometry_stage(
     // curve (or another effect) in disguise: the sets with an exposure are then out.
     let mut allowed = cands.clone();
     let mut rejected_black = None;
+    // With the curve the noise shows, every candidate holds it: reported as such, next to the
+    // linear camera with no effect.
+    let linear_err = (shows == Some(true)).then(|| cv_of(&linear, &[]));
+    let report = |cands: &[Candidate]| {
+        let mut out = scored(cands);
+        if let Some(err) = linear_err {
+            for c in &mut out {
+                c.effects.push("gamma".into());
+            }
+            out.insert(
+                0,
+                ScoredCandidate {
+                    effects: Vec::new(),
+                    k: 0,
+                    cv_error: err,
+                },
+            );
+        }
+        out
+    };
     // The curve the noise shows: named with the render's held-out error with and without it.
-    if let (Some(true), Some(w)) = (shows, &noise_curve) {
+    if let (Some(true), Some(w), Some(without)) = (shows, &noise_curve, linear_err) {
         let e = Effect::Gamma { gamma: w.gamma };
         let was_absent = !has(model, "gamma");
         upsert(model, e);
         if was_absent {
-            let without = cv_of(&linear, &[]);
             let with = cands
                 .iter()
                 .find(|c| c.effects.is_empty())
@@ -1261,7 +1280,7 @@ fn photometry_stage(
     }
     let (choice, chosen, fit_set, f) = loop {
         let Some(choice) = choose_with(&allowed, min_share, &floor) else {
-            return scored(&cands);
+            return report(&cands);
         };
         let chosen = allowed[choice.index].effects.clone();
         let mut fit_set: Vec<&str> = chosen.clone();
@@ -1379,7 +1398,7 @@ fn photometry_stage(
             out.push(n);
         }
     }
-    scored(&cands)
+    report(&cands)
 }
 
 /// Smallest PSF σ named as `blur`, px (the catalogue's lower bound: below it the edge widths
