@@ -266,6 +266,10 @@ pub struct GapResult {
     pub candidates: BTreeMap<String, Vec<ScoredCandidate>>,
     /// The texture's effective blur against the real images (heightfield entries).
     pub texture: Option<TextureFigures>,
+    /// The response curve, black level and noise the repeat frames show over the dark
+    /// background ([`response`]); `None` without two frames per pose or a dark background that
+    /// shows its noise.
+    pub response: Option<response::ResponseFit>,
     /// Per view, the images behind the figures (only with [`GapOptions::keep_images`]).
     #[serde(skip)]
     pub images: Vec<GapViewImages>,
@@ -1047,6 +1051,32 @@ const VIGNETTING_MIN_STRENGTH: f64 = 0.05;
 /// off zero weakens the background's hold on the read noise), nothing hidden 0.98–1.01.
 const MIN_CURVE: f64 = 0.05;
 
+/// The photon-transfer witness of a run: the fit over every view, and each view's dark
+/// background (the render's no-terrain pixels, eroded) for the fits of one capture.
+struct NoiseWitness {
+    fit: Option<response::ResponseFit>,
+    backgrounds: Vec<Vec<bool>>,
+}
+
+impl NoiseWitness {
+    /// The witness of the views under the renders `preds`.
+    fn new(ctx: &Ctx<'_>, preds: &[Prediction]) -> NoiseWitness {
+        let backgrounds: Vec<Vec<bool>> = ctx
+            .views
+            .iter()
+            .zip(preds)
+            .map(|(v, p)| {
+                let empty: Vec<bool> = p.mask.iter().map(|m| !m).collect();
+                photometry::erode(&empty, v.width, v.height, photometry::ERODE)
+            })
+            .collect();
+        NoiseWitness {
+            fit: response_witness(ctx, &backgrounds, None),
+            backgrounds,
+        }
+    }
+}
+
 /// The response curve the repeat frames' noise shows ([`response`]) over every view with two
 /// frames and its dark `backgrounds`, or over those of fold `only`.
 fn response_witness<B: AsRef<[bool]>>(
@@ -1127,6 +1157,7 @@ fn photometry_stage(
     ctx: &Ctx<'_>,
     model: &mut SensorModel,
     min_share: f64,
+    transfer: &NoiseWitness,
     out: &mut Vec<Named>,
 ) -> Vec<ScoredCandidate> {
     let psf = model
@@ -1152,8 +1183,7 @@ fn photometry_stage(
     let pairs = overlap::pairs(&ctx.views, &preds, &analyses, &ctx.folds, &poses);
     // The response curve the noise shows ([`response`]) decides the curve when it can: then
     // `gamma` is no candidate of the render-side choice, which is made with the curve fixed.
-    let backgrounds: Vec<&[bool]> = analyses.iter().map(|a| a.background.as_slice()).collect();
-    let noise_curve = response_witness(ctx, &backgrounds, None);
+    let noise_curve = transfer.fit.clone();
     let shows = noise_curve
         .as_ref()
         .and_then(|w| w.shows_curve(MIN_CURVE, SIGNIFICANCE));
@@ -1271,7 +1301,7 @@ fn photometry_stage(
                 .enumerate()
                 .filter(|_| ctx.n_folds >= 2)
                 .filter_map(|(k, c)| {
-                    let g = response_witness(ctx, &backgrounds, Some(k))?.gamma;
+                    let g = response_witness(ctx, &transfer.backgrounds, Some(k))?.gamma;
                     Some(CaptureParams::new(c, &Effect::Gamma { gamma: g }))
                 })
                 .collect();
@@ -1680,7 +1710,13 @@ fn texture_stage(
 }
 
 /// Stage 3: noise from the repeat frames. Updates `model`.
-fn noise_stage(ctx: &Ctx<'_>, preds: &[Prediction], model: &mut SensorModel, out: &mut Vec<Named>) {
+fn noise_stage(
+    ctx: &Ctx<'_>,
+    preds: &[Prediction],
+    model: &mut SensorModel,
+    witness: &NoiseWitness,
+    out: &mut Vec<Named>,
+) {
     if has(model, "noise") {
         return;
     }
@@ -1703,16 +1739,7 @@ fn noise_stage(ctx: &Ctx<'_>, preds: &[Prediction], model: &mut SensorModel, out
     // The sensor's noise is on the linear signal, before the response curve: the photon
     // transfer fit over the dark background ([`response`]) has it there; the level fit of
     // `noise::measure` only without a curve.
-    let backgrounds: Vec<Vec<bool>> = ctx
-        .views
-        .iter()
-        .zip(preds)
-        .map(|(v, p)| {
-            let empty: Vec<bool> = p.mask.iter().map(|m| !m).collect();
-            photometry::erode(&empty, v.width, v.height, photometry::ERODE)
-        })
-        .collect();
-    let linear = response_witness(ctx, &backgrounds, None);
+    let linear = &witness.fit;
     let sigma_at_128 = linear
         .as_ref()
         .map_or(fit.sigma_at_128, |w| w.sigma_at(128.0));
@@ -1797,6 +1824,7 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
     // pixels before and after, so the two shadow figures compare like with like.
     let shadow = ctx.shadow_pixels(&model_before);
     let metrics_before = ctx.measure(&preds_before, &model_before, &shadow);
+    let witness = NoiseWitness::new(&ctx, &preds_before);
     let mut model = model_before.clone();
     let mut found = Vec::new();
     let mut candidates = BTreeMap::new();
@@ -1807,11 +1835,11 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
     blur_stage(&ctx, &mut model, opts.min_share, &mut found);
     candidates.insert(
         "photometry".to_string(),
-        photometry_stage(&ctx, &mut model, opts.min_share, &mut found),
+        photometry_stage(&ctx, &mut model, opts.min_share, &witness, &mut found),
     );
     shadows_stage(&ctx, &mut model, &mut found);
     let texture = texture_stage(&ctx, &mut model, &mut found);
-    noise_stage(&ctx, &preds_before, &mut model, &mut found);
+    noise_stage(&ctx, &preds_before, &mut model, &witness, &mut found);
     let preds_after = ctx.predict_all(&model);
     let metrics_after = ctx.measure(&preds_after, &model, &shadow);
     let masked = |p: &Prediction| -> Vec<f32> {
@@ -1852,6 +1880,7 @@ pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResu
         model_after: model,
         candidates,
         texture,
+        response: witness.fit,
     })
 }
 

@@ -34,6 +34,8 @@
 //! black level (+10.5 DN) leaves the background's noise too far up the curve to show it
 //! (± 0.37).
 
+use serde::Serialize;
+
 use super::blur::erf;
 use super::lsq::{solve, Problem};
 use crate::sensor::image::noise_variance;
@@ -138,7 +140,7 @@ impl Tally {
 }
 
 /// The response curve and noise the repeat frames show.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ResponseFit {
     /// Response curve exponent (`DN_out = 255 (DN / 255)^(1/γ)`).
     pub gamma: f64,

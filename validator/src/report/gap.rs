@@ -87,16 +87,28 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
                 .map(|&(dn, r, model)| (dn, if real { r } else { model }))
                 .collect()
         };
+        let mut series = vec![
+            Series::new("real frames", curve(b, true), palette(2)),
+            Series::new("model before", curve(b, false), palette(0)),
+            Series::new("model after", curve(a, false), palette(1)),
+        ];
+        // The photon-transfer fit (response curve, shot and read noise) over its levels.
+        if let Some(w) = &r.response {
+            series.push(Series::new(
+                format!("photon transfer, γ {:.3}", w.gamma),
+                w.levels
+                    .iter()
+                    .map(|&(c, _, _)| (c, w.sigma_at(c).powi(2)))
+                    .collect(),
+                palette(3),
+            ));
+        }
         line_plot(
             &dir.join("noise.png"),
             "Noise variance by intensity",
             "DN",
             "variance, DN²",
-            &[
-                Series::new("real frames", curve(b, true), palette(2)),
-                Series::new("model before", curve(b, false), palette(0)),
-                Series::new("model after", curve(a, false), palette(1)),
-            ],
+            &series,
         )?;
     }
     let mut intensity = before_after(b, a, |m| m.real_by_intensity.clone());
@@ -181,6 +193,21 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
             t.correlation,
             t.own_blur_m * 1e3,
             t.excess_m * 1e3
+        ));
+    }
+    if let Some(w) = &r.response {
+        page.heading(2, "The camera's response, from its noise", None);
+        page.paragraph(&format!(
+            "Two frames of each pose differ only by sensor noise, which arises before the response curve and is reshaped by it. Over {} levels of the frames and {} values of the dark background the noise fits a response curve γ {:.3} ± {:.3}, shot noise {:.4} DN²/DN and read noise {:.2} DN on the linear signal, and a black level of {:.1} ± {:.1} DN (residuals {:.2} standard errors² each). The entry does not enter this figure: it witnesses the camera's curve and black level for the photometric fit.",
+            w.levels.len(),
+            w.background_px,
+            w.gamma,
+            w.gamma_se,
+            w.shot_gain,
+            w.read_sigma,
+            w.black_dn,
+            w.black_se,
+            w.reduced_chi2
         ));
     }
     page.heading(2, "Gap before and after", None);
