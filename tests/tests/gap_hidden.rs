@@ -302,24 +302,18 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
     );
 }
 
-/// A mild response curve (1.15) is almost a straight line over a terrain's intensities, and
-/// an exposure offset of ~0.05 fits it better held out; the repeat frames' noise over the black
-/// sky shows the curve (and the sky, which the offset would lift to ~13 DN, is at 0).
-#[test]
-fn a_mild_response_curve_is_named_gamma_not_an_exposure() {
+/// Runs the single-effect case `label` (hidden `label`) on `seeds` with `setup` and asserts it
+/// is judged right on each.
+fn assert_single_effect_cases(label: &'static str, seeds: &[u64], setup: &Setup) {
     let root = tempfile::tempdir().unwrap();
     let (mut bad, mut lines) = (Vec::new(), Vec::new());
     let mut matrix = Confusion::default();
-    let hidden = ["gamma"];
-    let setup = Setup {
-        effect_params: vec!["gamma.gamma=1.15".into()],
-        ..Setup::default()
-    };
-    for seed in SEEDS {
-        let r = run_case(root.path(), "gamma", seed, &hidden, &setup);
-        lines.push(r.line("gamma 1.15", seed));
+    let hidden = [label];
+    for &seed in seeds {
+        let r = run_case(root.path(), label, seed, &hidden, setup);
+        lines.push(r.line(label, seed));
         let case = Case {
-            label: "gamma",
+            label,
             seed,
             hidden: &hidden,
             lone: false,
@@ -330,29 +324,25 @@ fn a_mild_response_curve_is_named_gamma_not_an_exposure() {
     assert!(bad.is_empty(), "{}\n\n{}", bad.join("\n"), lines.join("\n"));
 }
 
+/// A mild response curve (1.15) is almost a straight line over a terrain's intensities, and
+/// an exposure offset of ~0.05 fits it better held out; the repeat frames' noise over the black
+/// sky shows the curve (and the sky, which the offset would lift to ~13 DN, is at 0).
+#[test]
+fn a_mild_response_curve_is_named_gamma_not_an_exposure() {
+    let setup = Setup {
+        effect_params: vec!["gamma.gamma=1.15".into()],
+        ..Setup::default()
+    };
+    assert_single_effect_cases("gamma", &SEEDS, &setup);
+}
+
 /// An exposure that brightens with little offset (gains 1.11 and 1.14) is, over a terrain's
 /// intensities, as much a response curve of 1.1–1.2 to the render (from mini's two captures
 /// the curve's held-out error was the lower); the repeat frames' noise shows the response is
 /// linear and where the black level is.
 #[test]
 fn a_brightening_exposure_is_named_exposure_not_a_response_curve() {
-    let root = tempfile::tempdir().unwrap();
-    let (mut bad, mut lines) = (Vec::new(), Vec::new());
-    let mut matrix = Confusion::default();
-    let hidden = ["exposure"];
-    for seed in [106, 110] {
-        let r = run_case(root.path(), "exposure", seed, &hidden, &Setup::default());
-        lines.push(r.line("exposure", seed));
-        let case = Case {
-            label: "exposure",
-            seed,
-            hidden: &hidden,
-            lone: false,
-        };
-        judge(&r, &case, &mut matrix, &mut lines, &mut bad);
-    }
-    println!("{}", lines.join("\n"));
-    assert!(bad.is_empty(), "{}\n\n{}", bad.join("\n"), lines.join("\n"));
+    assert_single_effect_cases("exposure", &[106, 110], &Setup::default());
 }
 
 #[test]
