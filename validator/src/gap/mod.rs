@@ -346,7 +346,16 @@ fn jackknife(n_folds: usize, fit: &(dyn Fn(usize) -> Vec<f64> + Sync)) -> Option
     if n_folds < 2 {
         return None;
     }
-    let fits: Vec<Vec<f64>> = (0..n_folds).map(fit).collect();
+    jackknife_spread(&(0..n_folds).map(fit).collect::<Vec<_>>())
+}
+
+/// The jackknife standard errors of leave-one-fold-out `fits` (see [`jackknife`]); `None` with
+/// fewer than two.
+fn jackknife_spread(fits: &[Vec<f64>]) -> Option<Vec<f64>> {
+    if fits.len() < 2 {
+        return None;
+    }
+    let n_folds = fits.len();
     let k = fits.first()?.len();
     let n = n_folds as f64;
     Some(

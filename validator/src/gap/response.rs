@@ -38,6 +38,7 @@ use serde::Serialize;
 
 use super::blur::erf;
 use super::lsq::{solve, Problem};
+use super::{honest_std_err, jackknife_spread};
 use crate::sensor::image::noise_variance;
 
 /// Width of a transfer-curve level bin, DN.
@@ -340,29 +341,19 @@ pub fn measure(views: &[ResponseView<'_>], n_folds: usize) -> Option<ResponseFit
     };
     // Per parameter: the least-squares error scaled by the fit's reduced χ², or the jackknife
     // over folds if larger.
-    let honest = |i: usize| {
-        let formal = se[i] * reduced.max(1.0).sqrt();
-        let n = jack.len() as f64;
-        let spread = if jack.len() >= 2 {
-            let mean = jack.iter().map(|p| p[i]).sum::<f64>() / n;
-            ((n - 1.0) / n * jack.iter().map(|p| (p[i] - mean).powi(2)).sum::<f64>()).sqrt()
-        } else {
-            0.0
-        };
-        if formal.is_finite() {
-            formal.max(spread)
-        } else {
-            spread
-        }
-    };
+    let scale = reduced.max(1.0).sqrt();
+    let se = honest_std_err(
+        [se[0] * scale, se[1] * scale, se[2] * scale, se[3] * scale],
+        jackknife_spread(&jack),
+    );
     let hist = dark_histogram(&all.hist)?;
     Some(ResponseFit {
         gamma: q[0],
-        gamma_se: honest(0),
+        gamma_se: se[0],
         shot_gain: q[1],
         read_sigma: q[2],
         black_dn: q[3],
-        black_se: honest(3),
+        black_se: se[3],
         reduced_chi2: reduced,
         levels: all.levels(),
         background_px: hist.iter().sum(),
