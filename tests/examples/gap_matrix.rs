@@ -3,11 +3,12 @@
 //! hidden; each is compiled and `gap` runs on its finest laser entry. Prints one line per case
 //! (hidden → named, fitted vs true parameters, gap before → after) and the matrix.
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS]`
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
 //! locations per campaign, default the preset's 2, `-` for it; `CAMERAS`: comma-separated
 //! cameras to examine, e.g. `navcam_left` for a lone camera, default (or `-`) all; `PARAMS`:
-//! comma-separated hidden-effect parameters set rather than drawn, e.g. `gamma.gamma=1.15`).
+//! comma-separated hidden-effect parameters set rather than drawn, e.g. `gamma.gamma=1.15`, or
+//! `-`; `TERRAIN`: `truth` to run on the campaign's true terrain instead of the laser entry).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::Path;
@@ -34,8 +35,10 @@ fn main() {
             .unwrap_or_default(),
         effect_params: args
             .get(5)
+            .filter(|s| *s != "-")
             .map(|s| s.split(',').map(String::from).collect())
             .unwrap_or_default(),
+        true_terrain: args.get(6).is_some_and(|s| s == "truth"),
     };
     if let Some(only) = args.get(2).filter(|s| *s != "all") {
         let only: Vec<&str> = only.split(',').collect();

@@ -1,6 +1,7 @@
 //! One case of the gap workflow's proof on hidden effects: a `mini` campaign with the given
 //! effects hidden (parameters drawn from the seed within the documented ranges) is generated,
-//! compiled, and `gap` runs on its finest laser entry. The test `gap_hidden` and the
+//! compiled, and `gap` runs on its finest laser entry (or, to measure what the entry costs, on
+//! the campaign's true terrain). The test `gap_hidden` and the
 //! `gap_matrix` example both run cases through here.
 
 use std::collections::BTreeMap;
@@ -8,11 +9,14 @@ use std::fmt;
 use std::path::Path;
 
 use regolith_corpus::effects::{apply_param, HiddenSpec};
-use regolith_corpus::presets::Preset;
+use regolith_corpus::presets::{Preset, PresetConfig};
+use regolith_corpus::terrain::Terrain;
 use regolith_corpus::{generate, GenerateOptions};
 use regolith_reader::{Database, Writer};
 use regolith_validator::gap::{self, Figure, GapOptions, GapResult, Metrics};
+use regolith_validator::render::Geometry;
 use regolith_validator::sensor::{Effect, SensorModel};
+use regolith_validator::validate::entry_geometry;
 
 /// The cases of the proof: nothing hidden, each catalogue effect alone, and three pairs that
 /// masquerade as each other when fitted one at a time. `(label, hidden effects)`.
@@ -121,6 +125,10 @@ pub struct Setup {
     /// Hidden-effect parameters set rather than drawn, as `corpus generate --effect-param`
     /// takes them (`"gamma.gamma=1.15"`).
     pub effect_params: Vec<String>,
+    /// The workflow looks at the campaign's true terrain (the corpus' heights and albedo)
+    /// instead of the compiled entry: what it recovers when the entry is exact, and so what
+    /// the entry itself costs.
+    pub true_terrain: bool,
 }
 
 /// Runs one case in `root/<label>-<seed>` (replaced if present).
@@ -160,7 +168,17 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         cameras: setup.cameras.clone(),
         ..GapOptions::default()
     };
-    let gap = gap::run(&view, ENTRY, &opts).unwrap();
+    let geometry = if setup.true_terrain {
+        let cfg = PresetConfig::of(Preset::Mini);
+        let t = Terrain::build(&cfg, cfg.cell_m, seed);
+        Geometry::Heightfield {
+            grid: t.height,
+            albedo: t.albedo,
+        }
+    } else {
+        entry_geometry(&view, ENTRY).unwrap()
+    };
+    let gap = gap::run_on(&view, &geometry, ENTRY, &opts).unwrap();
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(camp.join("truth/hidden.json")).unwrap()).unwrap();
     let truth: Vec<Effect> = serde_json::from_value(truth["effects"].clone()).unwrap();
@@ -169,7 +187,7 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         oracle.effects.retain(|e| e.name() != t.name());
         oracle.effects.push(*t);
     }
-    let floor = gap::measure_model(&view, ENTRY, &oracle, &gap.model_before, &opts).unwrap();
+    let floor = gap::measure_model_on(&view, &geometry, &oracle, &gap.model_before, &opts).unwrap();
     CaseResult { truth, gap, floor }
 }
 
