@@ -507,20 +507,14 @@ mod tests {
 
     const PLANE: (usize, usize) = (320, 256);
 
-    /// A textured plane 2 m ahead of the ground frame's origin (z = 2), seen by cameras placed
-    /// at `at` (looking along +z) whose real k1 is `dk1` off their calibration and whose rig
-    /// truly has the pose bias of the parameters `bias` ([`effects_of`]): the views and their
-    /// render samples.
-    fn plane_fixture(
-        dk1: f64,
-        bias: &[f64; 8],
-        at: &[Placement],
-    ) -> (Vec<ViewImages>, Vec<Observation>) {
-        lens_fixture([0.0, 0.0], dk1, bias, at)
-    }
+    /// Calibrated radial terms of a lens without distortion.
+    const PINHOLE: [f64; 2] = [0.0, 0.0];
 
-    /// [`plane_fixture`] through a lens whose calibrated radial terms are `lens` (k1, k2).
-    fn lens_fixture(
+    /// A textured plane 2 m ahead of the ground frame's origin (z = 2), seen by cameras placed
+    /// at `at` (looking along +z) through a lens whose calibrated radial terms are `lens` (k1,
+    /// k2), whose real k1 is `dk1` off its calibration and whose rig truly has the pose bias of
+    /// the parameters `bias` ([`effects_of`]): the views and their render samples.
+    fn plane_fixture(
         lens: [f64; 2],
         dk1: f64,
         bias: &[f64; 8],
@@ -577,7 +571,7 @@ mod tests {
 
     /// One camera at the origin.
     fn plane_views(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>) {
-        plane_fixture(dk1, &[0.0; 8], &[Placement::lone(Pose::IDENTITY)])
+        plane_fixture(PINHOLE, dk1, &[0.0; 8], &[Placement::lone(Pose::IDENTITY)])
     }
 
     /// The stereo head: the left camera at the origin is the rig, the right one sits 10 cm
@@ -596,23 +590,14 @@ mod tests {
         ]
     }
 
-    /// The views of `at`, their render samples and their stereo pairs.
+    /// The views of `at` through `lens`, their render samples and their stereo pairs.
     fn stereo_fixture(
-        dk1: f64,
-        bias: &[f64; 8],
-        at: &[Placement],
-    ) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
-        stereo_lens_fixture([0.0, 0.0], dk1, bias, at)
-    }
-
-    /// [`stereo_fixture`] through a lens whose calibrated radial terms are `lens`.
-    fn stereo_lens_fixture(
         lens: [f64; 2],
         dk1: f64,
         bias: &[f64; 8],
         at: &[Placement],
     ) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
-        let (views, obs) = lens_fixture(lens, dk1, bias, at);
+        let (views, obs) = plane_fixture(lens, dk1, bias, at);
         let poses: Vec<Pose> = at.iter().map(|a| a.ground_from_camera).collect();
         let (mask, depth) = (
             vec![true; PLANE.0 * PLANE.1],
@@ -624,7 +609,7 @@ mod tests {
 
     /// The stereo head with a hidden `dk1`.
     fn stereo_plane(dk1: f64) -> (Vec<ViewImages>, Vec<Observation>, Vec<Observation>) {
-        stereo_fixture(dk1, &[0.0; 8], &head())
+        stereo_fixture(PINHOLE, dk1, &[0.0; 8], &head())
     }
 
     #[test]
@@ -633,7 +618,7 @@ mod tests {
         let mut truth = [0.0; 8];
         truth[2] = 0.003;
         truth[7] = 1.5;
-        let (views, obs, pairs) = stereo_fixture(0.0, &truth, &head());
+        let (views, obs, pairs) = stereo_fixture(PINHOLE, 0.0, &truth, &head());
         // Through the rig the two real images agree at the truth; read as a bias in each
         // camera's own frame (the right camera swinging 2.6 mm about its own centre) they do
         // not.
@@ -665,7 +650,7 @@ mod tests {
         truth[3] = 0.004;
         truth[5] = 0.3;
         truth[7] = 0.2;
-        let (views, obs, pairs) = stereo_lens_fixture(lens, 0.0, &truth, &head());
+        let (views, obs, pairs) = stereo_fixture(lens, 0.0, &truth, &head());
         assert!(pairs.len() > obs.len() / 4, "{} pairs", pairs.len());
         // The two real images agree through the distorted projection at the truth (up to
         // resampling, as through a pinhole).
