@@ -78,10 +78,17 @@ impl CaseResult {
         for t in &self.truth {
             for (k, v) in t.params() {
                 let f = self.fitted(t.name(), k);
+                let se = self
+                    .gap
+                    .named
+                    .iter()
+                    .find(|n| n.effect == t.name())
+                    .and_then(|n| n.std_err.get(k));
                 detail += &format!(
-                    " {}.{k}={v:.4}→{}",
+                    " {}.{k}={v:.4}→{}{}",
                     t.name(),
-                    f.map_or("-".into(), |f| format!("{f:.4}"))
+                    f.map_or("-".into(), |f| format!("{f:.4}")),
+                    se.map_or(String::new(), |s| format!("±{s:.4}"))
                 );
             }
         }

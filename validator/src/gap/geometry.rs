@@ -11,6 +11,8 @@
 //! exposure, vignetting and the response curve do not enter, and the pixel-scale texture the
 //! entry cannot reproduce (its texture is laser reflectance, not a photograph) is damped.
 //! Block matching was tried first and failed on such entries: too few distinctive patches.
+//! The survey markers' discs are not part of the terrain here ([`super::markers`]): a marker
+//! ball is each capture's strongest feature and one no DEM renders where it is.
 //!
 //! The render's residuals are biased by that texture: their minimum lies off the truth (mini
 //! seed 101: a hidden dk1 of −0.0466 came out −0.0406, and the residual at the truth is above
