@@ -8,12 +8,13 @@
 //! locations per campaign, default the preset's 2, `-` for it; `CAMERAS`: comma-separated
 //! cameras to examine, e.g. `navcam_left` for a lone camera, default (or `-`) all; `PARAMS`:
 //! comma-separated hidden-effect parameters set rather than drawn, e.g. `gamma.gamma=1.15`, or
-//! `-`; `TERRAIN`: `truth` to run on the campaign's true terrain instead of the laser entry).
+//! `-`; `TERRAIN`: `truth` to run on the campaign's true terrain instead of the laser entry,
+//! `truth-albedo` for the entry's heights with the true albedo, default `entry`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::Path;
 
-use regolith_tests::gap_case::{cases, run_case, Confusion, Setup};
+use regolith_tests::gap_case::{cases, run_case, Confusion, Setup, TerrainChoice};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -38,7 +39,9 @@ fn main() {
             .filter(|s| *s != "-")
             .map(|s| s.split(',').map(String::from).collect())
             .unwrap_or_default(),
-        true_terrain: args.get(6).is_some_and(|s| s == "truth"),
+        terrain: args.get(6).map_or(TerrainChoice::Entry, |s| {
+            TerrainChoice::parse(s).expect("TERRAIN: entry, truth or truth-albedo")
+        }),
     };
     if let Some(only) = args.get(2).filter(|s| *s != "all") {
         let only: Vec<&str> = only.split(',').collect();

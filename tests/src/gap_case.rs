@@ -132,17 +132,43 @@ pub struct Setup {
     /// Hidden-effect parameters set rather than drawn, as `corpus generate --effect-param`
     /// takes them (`"gamma.gamma=1.15"`).
     pub effect_params: Vec<String>,
-    /// The workflow looks at the campaign's true terrain (the corpus' heights and albedo)
-    /// instead of the compiled entry: what it recovers when the entry is exact, and so what
-    /// the entry itself costs.
-    pub true_terrain: bool,
+    /// The terrain the workflow looks at: the compiled entry, or (to measure what the entry
+    /// costs) the campaign's truth in whole or in part.
+    pub terrain: TerrainChoice,
+}
+
+/// What a case renders: the compiled entry or the campaign's truth.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum TerrainChoice {
+    /// The compiled laser entry, heights and texture (the workflow as a user runs it).
+    #[default]
+    Entry,
+    /// The campaign's true heights and albedo: what the workflow recovers when the entry is
+    /// exact.
+    Truth,
+    /// The entry's heights with the campaign's true albedo: separates what the entry's
+    /// geometry costs from what its texture (laser reflectance) costs.
+    EntryHeightsTrueAlbedo,
+}
+
+impl TerrainChoice {
+    /// Parses `entry`, `truth` or `truth-albedo` (the command-line spelling of the examples).
+    pub fn parse(s: &str) -> Option<TerrainChoice> {
+        match s {
+            "entry" | "-" => Some(TerrainChoice::Entry),
+            "truth" => Some(TerrainChoice::Truth),
+            "truth-albedo" => Some(TerrainChoice::EntryHeightsTrueAlbedo),
+            _ => None,
+        }
+    }
 }
 
 /// Runs one case in `root/<label>-<seed>` (replaced if present).
 ///
 /// # Panics
-/// On any failure of generation, compilation or the gap run (this is test support).
-#[allow(clippy::unwrap_used)]
+/// On any failure of generation, compilation or the gap run (this is test support), and when
+/// the entry is a mesh but `setup` asks for its heights.
+#[allow(clippy::unwrap_used, clippy::panic)]
 pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Setup) -> CaseResult {
     let dir = root.join(format!("{label}-{seed}"));
     let _ = std::fs::remove_dir_all(&dir);
@@ -175,15 +201,28 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         cameras: setup.cameras.clone(),
         ..GapOptions::default()
     };
-    let geometry = if setup.true_terrain {
+    let truth = || {
         let cfg = PresetConfig::of(Preset::Mini);
-        let t = Terrain::build(&cfg, cfg.cell_m, seed);
-        Geometry::Heightfield {
-            grid: t.height,
-            albedo: t.albedo,
+        Terrain::build(&cfg, cfg.cell_m, seed)
+    };
+    let geometry = match (setup.terrain, entry_geometry(&view, ENTRY).unwrap()) {
+        (TerrainChoice::Entry, entry) => entry,
+        (TerrainChoice::Truth, _) => {
+            let t = truth();
+            Geometry::Heightfield {
+                grid: t.height,
+                albedo: t.albedo,
+            }
         }
-    } else {
-        entry_geometry(&view, ENTRY).unwrap()
+        (TerrainChoice::EntryHeightsTrueAlbedo, Geometry::Heightfield { grid, .. }) => {
+            Geometry::Heightfield {
+                grid,
+                albedo: truth().albedo,
+            }
+        }
+        (TerrainChoice::EntryHeightsTrueAlbedo, Geometry::Mesh(_)) => {
+            panic!("{ENTRY} is a mesh entry: it has no heights to keep")
+        }
     };
     let gap = gap::run_on(&view, &geometry, ENTRY, &opts).unwrap();
     let truth: serde_json::Value =

@@ -21,7 +21,9 @@
 use std::collections::BTreeMap;
 
 use regolith_format::frames::Pose;
-use regolith_tests::gap_case::{cases, figures, run_case, CaseResult, Confusion, Setup};
+use regolith_tests::gap_case::{
+    cases, figures, run_case, CaseResult, Confusion, Setup, TerrainChoice,
+};
 use regolith_validator::gap::Figure;
 use regolith_validator::sensor::{distortion_shift, Effect, Placement, SensorModel};
 
@@ -401,6 +403,52 @@ fn a_pose_bias_seen_from_six_capture_locations_is_within_3_mm_and_0_1_degrees_of
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
 
+/// The fitted parameters of `r`'s one hidden effect `label` off the truth by more than the
+/// workflow's targets on any axis (±0.1°, ±3 mm, `dk1` ±5 %), one line each; also a case
+/// that named anything else.
+fn axis_misses(r: &CaseResult, label: &str, seed: u64, line: &str) -> Vec<String> {
+    let Some(fit) = fitted_effect(r, label) else {
+        return vec![format!("seed {seed}: not named: {line}")];
+    };
+    let (got, want) = (fit.params(), r.truth[0].params());
+    let mut bad = Vec::new();
+    for (k, t) in &want {
+        let err = got[k] - t;
+        let tol = match k.split('.').next() {
+            Some("rotation_deg") => POSE_BIAS_AXIS_TOL_DEG,
+            Some("translation_m") => POSE_BIAS_AXIS_TOL_M,
+            _ if *k == "dk1" => DISTORTION_DK1_TOL * t.abs(),
+            _ => continue,
+        };
+        if err.abs() > tol {
+            bad.push(format!(
+                "seed {seed}: {k} {err:+.4} off (tolerance {tol:.4}): {line}"
+            ));
+        }
+    }
+    if r.named() != [label] {
+        bad.push(format!("seed {seed}: {line}"));
+    }
+    bad
+}
+
+/// Runs each `(label, seed)` case on `terrain` and asserts [`axis_misses`] finds nothing.
+fn assert_within_targets_on_every_axis(terrain: TerrainChoice, cases: &[(&str, u64)]) {
+    let root = tempfile::tempdir().unwrap();
+    let setup = Setup {
+        terrain,
+        ..Setup::default()
+    };
+    let mut bad = Vec::new();
+    for &(label, seed) in cases {
+        let r = run_case(root.path(), label, seed, &[label], &setup);
+        let line = r.line(&format!("{label} ({terrain:?})"), seed);
+        println!("{line}");
+        bad.extend(axis_misses(&r, label, seed, &line));
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
 /// The geometric stage given the campaign's true terrain instead of the laser entry: a pose
 /// bias must come out within the workflow's ±0.1° and ±3 mm on every axis, and a distortion's
 /// `dk1` within ±5 %, from mini's two capture locations. Seeds 101, 102 read a pose bias within
@@ -408,49 +456,34 @@ fn a_pose_bias_seen_from_six_capture_locations_is_within_3_mm_and_0_1_degrees_of
 /// 0.018°/0.3 mm, 0.029°/0.3 mm, 2.7 and 0.3 %; 103, 104: 0.007°/0.2 mm, 0.006°/0.1 mm, 0.0
 /// and 1.1 %), where the laser entry leaves the per-axis errors of
 /// [`POSE_BIAS_SIX_ROLL_TOL_DEG`]'s docs and `dk1` up to 23 % off: what limits those is the
-/// entry (its texture and its borders, see the gap module), not the fit.
+/// entry, not the fit (for the pose bias, its texture: see the next test).
 #[test]
 fn with_the_true_terrain_a_pose_bias_and_a_distortion_are_within_the_targets_on_every_axis() {
-    let root = tempfile::tempdir().unwrap();
-    let setup = Setup {
-        true_terrain: true,
-        ..Setup::default()
-    };
-    let mut bad = Vec::new();
-    for (label, seed) in [
-        ("pose-bias", 101),
-        ("pose-bias", 102),
-        ("distortion", 101),
-        ("distortion", 102),
-    ] {
-        let r = run_case(root.path(), label, seed, &[label], &setup);
-        let line = r.line(&format!("{label} (true terrain)"), seed);
-        println!("{line}");
-        let truth = r.truth[0];
-        let Some(fit) = fitted_effect(&r, label) else {
-            bad.push(format!("seed {seed}: not named: {line}"));
-            continue;
-        };
-        let (got, want) = (fit.params(), truth.params());
-        for (k, t) in &want {
-            let err = got[k] - t;
-            let tol = match k.split('.').next() {
-                Some("rotation_deg") => POSE_BIAS_AXIS_TOL_DEG,
-                Some("translation_m") => POSE_BIAS_AXIS_TOL_M,
-                _ if *k == "dk1" => DISTORTION_DK1_TOL * t.abs(),
-                _ => continue,
-            };
-            if err.abs() > tol {
-                bad.push(format!(
-                    "seed {seed}: {k} {err:+.4} off (tolerance {tol:.4}): {line}"
-                ));
-            }
-        }
-        if r.named() != [label] {
-            bad.push(format!("seed {seed}: {line}"));
-        }
-    }
-    assert!(bad.is_empty(), "{}", bad.join("\n"));
+    assert_within_targets_on_every_axis(
+        TerrainChoice::Truth,
+        &[
+            ("pose-bias", 101),
+            ("pose-bias", 102),
+            ("distortion", 101),
+            ("distortion", 102),
+        ],
+    );
+}
+
+/// The laser entry's own heights with the campaign's true albedo in place of its texture: a
+/// pose bias must come out within ±0.1° and ±3 mm on every axis from the two capture
+/// locations, so the compiled geometry is good enough and what the workflow misses on the
+/// entry comes from its texture (laser reflectance: see the gap module). Seeds 101–104:
+/// worst axes −0.07°/−2.9 mm, +0.08°/+2.5 mm, +0.10°/+2.3 mm, −0.02°/+0.4 mm, where the entry
+/// with its texture reads (101, 102) −0.13°/−5.0 mm and +0.41°/+11.9 mm. A distortion is not
+/// separated so: `dk1` still reads −9.4 and −3.6 % off on 101, 102 (its valley with `dk2`
+/// depends on the heights too).
+#[test]
+fn with_the_entry_heights_and_the_true_albedo_a_pose_bias_is_within_the_targets_on_every_axis() {
+    assert_within_targets_on_every_axis(
+        TerrainChoice::EntryHeightsTrueAlbedo,
+        &[("pose-bias", 101), ("pose-bias", 102)],
+    );
 }
 
 /// One camera of the stereo head examined alone (`--cameras navcam_left`): no stereo pairs join
