@@ -13,7 +13,9 @@
 //! other group of samples preferred the truth. The marker positions are known to a fraction of
 //! a millimetre (the Vicon means of the `registration` report), so their discs are removed
 //! from the terrain mask the geometric stage band-passes and samples with: both images are
-//! filled with the terrain mean there, and no sample or pair lies in them.
+//! filled with the terrain mean there, and no sample or pair lies in them. The alignment
+//! residual the gap reports (the figure a geometric effect is judged by, [`super::measure`])
+//! samples the same masks, so it measures what the fit lowered.
 
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;

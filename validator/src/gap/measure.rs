@@ -256,7 +256,11 @@ fn bright_level(shading: &[f32], mask: &[bool]) -> Option<f64> {
 /// when given, is view `k`'s radiance rendered with the model's texture detail
 /// ([`SensorModel::detailed`]): like the model's noise, a sample's detail enters the spectrum
 /// only (its expectation is the plain render). `shading[k]`, when given, is view `k`'s radiance
-/// rendered with a uniform albedo (the terrain's illumination).
+/// rendered with a uniform albedo (the terrain's illumination). `align_mask[k]` is the
+/// terrain of view `k` the alignment residual samples: the geometric stage's own, without the
+/// survey markers (see the gap module's `markers`), so the figure a geometric effect is judged
+/// by is the one its fit lowered.
+#[allow(clippy::too_many_arguments)]
 pub fn measure(
     views: &[GapView],
     preds: &[Prediction],
@@ -264,6 +268,7 @@ pub fn measure(
     shadow: &[Vec<bool>],
     detailed: Option<&[Vec<f32>]>,
     shading: Option<&[&[f32]]>,
+    align_mask: &[Vec<bool>],
 ) -> Metrics {
     let mut sq = 0.0;
     let mut n = 0usize;
@@ -356,7 +361,7 @@ pub fn measure(
             0,
             &p.dn,
             &real,
-            &p.mask,
+            align_mask.get(k).unwrap_or(&p.mask),
             &p.depth,
             &p.camera,
             v.at.rig_from_camera,

@@ -498,6 +498,11 @@ impl<'a> Ctx<'a> {
         let shading: Option<Vec<&[f32]>> = inputs
             .as_ref()
             .map(|t| t.flat.iter().map(|p| p.radiance.as_slice()).collect());
+        let align_mask: Vec<Vec<bool>> = preds
+            .iter()
+            .enumerate()
+            .map(|(i, p)| geometric_mask(self, model, i, p))
+            .collect();
         let mut m = measure::measure(
             &self.views,
             preds,
@@ -505,6 +510,7 @@ impl<'a> Ctx<'a> {
             shadow,
             detailed.as_deref(),
             shading.as_deref(),
+            &align_mask,
         );
         if let (Geometry::Heightfield { albedo, .. }, Some(inputs)) = (self.geometry, &inputs) {
             let texture = match &detailed_geometry {
