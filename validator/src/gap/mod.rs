@@ -137,10 +137,12 @@
 //! from six. The texture's error against the true albedo (averaged over its 1 cm cells) sits on
 //! the relief — RMS 0.14–0.20 on cells 2 mm or more off their 7 cm mean, 0.05 on the flat —
 //! where the laser's reflectance keeps the shading of sub-cell facets toward each scanner
-//! (the incidence normal is the 6 cm plane's); seed 103's pitch stays 0.36–0.38° off with the
-//! scan's range noise off or its step 2.5 times finer (0.26° with both), and the true albedo
-//! times such shading, blurred 8 mm, takes the heights-only 0.09° to 0.16°. Weighting the
-//! stereo pairs three times more moves the error into the vertical translation (−4 to −7 mm).
+//! (the incidence normal is the 6 cm plane's). From six locations seed 103's pitch stays
+//! 0.36–0.38° off with the scan's range noise off or its step 2.5 times finer (0.26° with
+//! both); in place of the texture, the true albedo averaged over its cells reads 0.09°, and
+//! times such shading, blurred 8 mm, 0.16°. Removing the relief from the masks instead loses
+//! the alignment's information (pitch up to 0.58°); weighting the stereo pairs three times more
+//! moves the error into the vertical translation (−4 to −7 mm).
 //! From estec's eight captures a
 //! hidden vignetting of 0.4756 came out 0.4775 ± 0.0008 and a pose bias within 0.041° and
 //! 0.4 mm per axis (seed 2; 0.049° and 0.8 mm with the survey markers kept out; 0.026° and
