@@ -500,11 +500,7 @@ impl<'a> Ctx<'a> {
         let shading: Option<Vec<&[f32]>> = inputs
             .as_ref()
             .map(|t| t.flat.iter().map(|p| p.radiance.as_slice()).collect());
-        let align_mask: Vec<Vec<bool>> = preds
-            .iter()
-            .enumerate()
-            .map(|(i, p)| geometric_mask(self, model, i, p))
-            .collect();
+        let align_mask = geometric_masks(self, model, preds);
         let mut m = measure::measure(
             &self.views,
             preds,
@@ -611,14 +607,19 @@ fn geometric_mask(ctx: &Ctx<'_>, model: &SensorModel, i: usize, p: &Prediction) 
     mask
 }
 
-/// The band-pass levels of every view for the geometric fit, from the renders `preds` of
-/// `model`.
-fn geometry_levels(ctx: &Ctx<'_>, model: &SensorModel, preds: &[Prediction]) -> Levels {
-    let masks: Vec<Vec<bool>> = preds
+/// [`geometric_mask`] of every render of `preds`.
+fn geometric_masks(ctx: &Ctx<'_>, model: &SensorModel, preds: &[Prediction]) -> Vec<Vec<bool>> {
+    preds
         .iter()
         .enumerate()
         .map(|(i, p)| geometric_mask(ctx, model, i, p))
-        .collect();
+        .collect()
+}
+
+/// The band-pass levels of every view for the geometric fit, from the renders `preds` of
+/// `model`.
+fn geometry_levels(ctx: &Ctx<'_>, model: &SensorModel, preds: &[Prediction]) -> Levels {
+    let masks = geometric_masks(ctx, model, preds);
     geometry::LEVELS
         .iter()
         .map(|band| {
@@ -656,11 +657,7 @@ fn stereo_levels(
 ) -> Levels {
     let poses: Vec<Pose> = ctx.views.iter().map(|v| model.pose(&v.at)).collect();
     let depth: Vec<&[f32]> = preds.iter().map(|p| p.depth.as_slice()).collect();
-    let masks: Vec<Vec<bool>> = preds
-        .iter()
-        .enumerate()
-        .map(|(i, p)| geometric_mask(ctx, model, i, p))
-        .collect();
+    let masks = geometric_masks(ctx, model, preds);
     let mask: Vec<&[bool]> = masks.iter().map(Vec::as_slice).collect();
     levels
         .iter()
