@@ -1,7 +1,10 @@
 //! The gap workflow's confusion matrix: mini campaigns with each catalogue effect hidden in
 //! turn (random parameters within the documented ranges, several seeds), pairs, and nothing
 //! hidden; each is compiled and `gap` runs on its finest laser entry. Prints one line per case
-//! (hidden → named, fitted vs true parameters, gap before → after) and the matrix.
+//! (hidden → named, fitted vs true parameters, gap before → after) with the parameters off
+//! their targets, then the matrix and, per parameter, how many fits met the workflow's target
+//! (`gap_case::targets`: vignetting ±5 %, gamma ±0.02, blur ±0.15 px, `dk1` ±5 %, pose bias
+//! ±0.1° / ±3 mm per axis, shadows ±3°).
 //!
 //! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
@@ -12,6 +15,7 @@
 //! `truth-albedo` for the entry's heights with the true albedo, default `entry`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use regolith_tests::gap_case::{cases, run_case, Confusion, Setup, TerrainChoice};
@@ -48,12 +52,32 @@ fn main() {
         cases.retain(|(label, _)| only.contains(&label.as_str()));
     }
     let mut matrix = Confusion::default();
+    // `effect.parameter` → (within the target, checked).
+    let mut tally: BTreeMap<String, (usize, usize)> = BTreeMap::new();
     for (label, hidden) in &cases {
         for &seed in &seeds {
             let r = run_case(&root, label, seed, hidden, &setup);
             println!("{}", r.line(label, seed));
+            let checks = r.target_checks();
+            let off: Vec<String> = checks
+                .iter()
+                .filter(|c| !c.ok())
+                .map(ToString::to_string)
+                .collect();
+            if !off.is_empty() {
+                println!("{:<22} seed {seed}: off target: {}", "", off.join(", "));
+            }
+            for c in checks {
+                let t = tally.entry(c.what.clone()).or_default();
+                t.0 += usize::from(c.ok());
+                t.1 += 1;
+            }
             matrix.add(label, hidden, &r.named());
         }
     }
     println!("\n{matrix}");
+    println!("\nwithin the parameter targets:");
+    for (what, (ok, n)) in &tally {
+        println!("  {what:<30} {ok}/{n}");
+    }
 }

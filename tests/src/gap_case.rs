@@ -38,6 +38,99 @@ pub fn cases() -> Vec<(String, Vec<&'static str>)> {
 /// The entry every case runs on: mini's finest laser DEM.
 const ENTRY: &str = "laser/0.01";
 
+/// The workflow's parameter targets: the least a fitted effect must come within its truth
+/// (the catalogue's documented tolerances), per parameter that has one.
+pub mod targets {
+    /// Vignetting strength, relative.
+    pub const VIGNETTING_REL: f64 = 0.05;
+    /// Response curve exponent, absolute.
+    pub const GAMMA: f64 = 0.02;
+    /// PSF σ, px.
+    pub const BLUR_PX: f64 = 0.15;
+    /// Distortion `dk1`, relative.
+    pub const DK1_REL: f64 = 0.05;
+    /// Pose bias, each rotation axis, degrees.
+    pub const POSE_DEG: f64 = 0.1;
+    /// Pose bias, each translation axis, metres.
+    pub const POSE_M: f64 = 0.003;
+    /// Shadows' light direction (azimuth and elevation each), degrees.
+    pub const SHADOWS_DEG: f64 = 3.0;
+}
+
+/// One fitted parameter against its target ([`targets`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TargetCheck {
+    /// `effect.parameter`.
+    pub what: String,
+    /// Fitted − true, in the target's unit (relative targets: a fraction of the truth); `None`
+    /// when the hidden effect was not named.
+    pub error: Option<f64>,
+    /// The target.
+    pub tolerance: f64,
+}
+
+impl TargetCheck {
+    /// Named and within the target.
+    pub fn ok(&self) -> bool {
+        self.error.is_some_and(|e| e.abs() <= self.tolerance)
+    }
+}
+
+impl fmt::Display for TargetCheck {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.error {
+            Some(e) => write!(f, "{} {e:+.4} (target ±{})", self.what, self.tolerance),
+            None => write!(f, "{} not named", self.what),
+        }
+    }
+}
+
+/// Every parameter of the `hidden` effects that has a target ([`targets`]), checked against
+/// `fitted(effect, parameter)` (`None`: the effect was not named).
+pub fn target_checks(
+    hidden: &[Effect],
+    fitted: &dyn Fn(&str, &str) -> Option<f64>,
+) -> Vec<TargetCheck> {
+    let mut out = Vec::new();
+    for t in hidden {
+        let name = t.name();
+        let truth = t.params();
+        let fit = |k: &str| fitted(name, k);
+        let mut push = |k: &str, error: Option<f64>, tolerance: f64| {
+            out.push(TargetCheck {
+                what: format!("{name}.{k}"),
+                error,
+                tolerance,
+            });
+        };
+        let rel = |k: &str| fit(k).map(|f| f / truth[k] - 1.0);
+        let abs = |k: &str| fit(k).map(|f| f - truth[k]);
+        match name {
+            "vignetting" => push("strength", rel("strength"), targets::VIGNETTING_REL),
+            "gamma" => push("gamma", abs("gamma"), targets::GAMMA),
+            "blur" => push("sigma_px", abs("sigma_px"), targets::BLUR_PX),
+            "distortion" => push("dk1", rel("dk1"), targets::DK1_REL),
+            "pose-bias" => {
+                for k in truth.keys() {
+                    let tol = if k.starts_with("rotation") {
+                        targets::POSE_DEG
+                    } else {
+                        targets::POSE_M
+                    };
+                    push(k, abs(k), tol);
+                }
+            }
+            "shadows" => {
+                let daz = abs("azimuth_deg").map(|d| (d + 540.0).rem_euclid(360.0) - 180.0);
+                push("azimuth_deg", daz, targets::SHADOWS_DEG);
+                push("elevation_deg", abs("elevation_deg"), targets::SHADOWS_DEG);
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
 /// What one case produced.
 #[derive(Debug)]
 pub struct CaseResult {
@@ -70,6 +163,12 @@ impl CaseResult {
     /// The true hidden effect called `name`.
     pub fn hidden(&self, name: &str) -> Option<&Effect> {
         self.truth.iter().find(|e| e.name() == name)
+    }
+
+    /// Every parameter of the hidden effects that has a target ([`targets`]), checked against
+    /// its fit ([`target_checks`]).
+    pub fn target_checks(&self) -> Vec<TargetCheck> {
+        target_checks(&self.truth, &|e, k| self.fitted(e, k))
     }
 
     /// One line: hidden → named, every true parameter against its fit, gap before → after.
@@ -276,5 +375,55 @@ impl fmt::Display for Confusion {
             writeln!(f, "  {h:<22} {}", cells.join(" "))?;
         }
         write!(f, "exactly right: {}/{}", self.correct, self.total)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn target_checks_hold_each_parameter_to_its_target() {
+        let hidden = [
+            Effect::Distortion {
+                dk1: -0.04,
+                dk2: 0.01,
+            },
+            Effect::Shadows {
+                azimuth_deg: 359.0,
+                elevation_deg: 40.0,
+            },
+            Effect::PoseBias {
+                translation_m: [0.01, 0.0, 0.0],
+                rotation_deg: [0.3, 0.0, 0.0],
+            },
+        ];
+        let fitted = |e: &str, k: &str| -> Option<f64> {
+            match (e, k) {
+                // 6 % off: a miss.
+                ("distortion", "dk1") => Some(-0.0424),
+                // Across north: 2° off, within 3°.
+                ("shadows", "azimuth_deg") => Some(1.0),
+                ("shadows", "elevation_deg") => Some(42.5),
+                _ => None,
+            }
+        };
+        let checks = target_checks(&hidden, &fitted);
+        let by: BTreeMap<&str, &TargetCheck> =
+            checks.iter().map(|c| (c.what.as_str(), c)).collect();
+        assert!((by["distortion.dk1"].error.unwrap() - 0.06).abs() < 1e-9);
+        assert!(!by["distortion.dk1"].ok());
+        assert!((by["shadows.azimuth_deg"].error.unwrap() - 2.0).abs() < 1e-9);
+        assert!(by["shadows.azimuth_deg"].ok() && by["shadows.elevation_deg"].ok());
+        // A pose bias not named: every axis a miss.
+        let pose: Vec<&&TargetCheck> = by
+            .iter()
+            .filter(|(k, _)| k.starts_with("pose-bias."))
+            .map(|(_, c)| c)
+            .collect();
+        assert_eq!(pose.len(), 6);
+        assert!(pose.iter().all(|c| c.error.is_none() && !c.ok()));
+        assert_eq!(by["pose-bias.rotation_deg.x"].tolerance, targets::POSE_DEG);
+        assert_eq!(by["pose-bias.translation_m.x"].tolerance, targets::POSE_M);
     }
 }
