@@ -125,14 +125,15 @@
 //! the same seeds read pitch −0.09, +0.14, +0.37, +0.01° off and y 1.7, 2.9, 9.6, 0.7 mm (mean
 //! error over the six axes and four seeds 0.12° → 0.09° and 3.6 → 2.7 mm); a distortion from two
 //! locations (seeds 101–107) `dk1` +3.9, −6.0, +8.4, +0.8, +8.5, +3.6, −22.9 % (fitted / true
-//! − 1; with the markers: −4.1, +1.6, +11.4, +15.8, −1.1 % on 101–105). What still pulls on seed 103 are the render's
-//! strongest band-pass features (1.8 % of the samples beyond 3 standard deviations) and the
-//! ground 5–20 cm inside the heightfield's border; squashing the band-pass (`2·tanh(x/2)`), a
-//! Huber or Tukey weight from the fit's residuals, leaving out samples next to the render's
-//! depth discontinuities, or leaving out the entry's small bumps (cells 4 mm above the DEM
-//! smoothed at 2 cm, where most of the remaining pull on seed 103 sat: dark pebbles) moved the
-//! seeds' errors by ±0.1° either way without shrinking them. It is the texture, not the
-//! heights: under the true albedo the entry's own heights give a hidden bias within 0.10° and
+//! − 1; with the markers: −4.1, +1.6, +11.4, +15.8, −1.1 % on 101–105). What still pulls on
+//! seed 103 are the render's strongest band-pass features (1.8 % of the samples beyond 3
+//! standard deviations) and the ground 5–20 cm inside the heightfield's border; squashing
+//! the band-pass (`2·tanh(x/2)`), a Huber or Tukey weight from the fit's residuals, leaving
+//! out samples next to the render's depth discontinuities, or leaving out the entry's small
+//! bumps (cells 4 mm above the DEM smoothed at 2 cm, where most of the remaining pull on seed
+//! 103 sat: dark pebbles) moved the seeds' errors by ±0.1° either way without shrinking them.
+//! It is the texture, not the heights: under the true albedo the entry's own heights give a
+//! hidden bias within 0.10° and
 //! 2.9 mm on every axis from two locations (seeds 101–104; `gap_hidden` asserts 101, 102) and
 //! from six. The texture's error against the true albedo (averaged over its 1 cm cells) sits on
 //! the relief — RMS 0.14–0.20 on cells 2 mm or more off their 7 cm mean, 0.05 on the flat —
