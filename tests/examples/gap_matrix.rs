@@ -6,13 +6,14 @@
 //! (`gap_case::targets`: vignetting ±5 %, gamma ±0.02, blur ±0.15 px, `dk1` ±5 %, pose bias
 //! ±0.1° / ±3 mm per axis, shadows ±3°).
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN]`
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN] [ENTRY]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
 //! locations per campaign, default the preset's 2, `-` for it; `CAMERAS`: comma-separated
 //! cameras to examine, e.g. `navcam_left` for a lone camera, default (or `-`) all; `PARAMS`:
 //! comma-separated hidden-effect parameters set rather than drawn, e.g. `gamma.gamma=1.15`, or
 //! `-`; `TERRAIN`: `truth` to run on the campaign's true terrain instead of the laser entry,
-//! `truth-albedo` for the entry's heights with the true albedo, default `entry`).
+//! `truth-albedo` for the entry's heights with the true albedo, default `entry`; `ENTRY`: the
+//! entry to run on, default `laser/0.01`, e.g. `sfm/0.02`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::BTreeMap;
@@ -46,6 +47,7 @@ fn main() {
         terrain: args.get(6).map_or(TerrainChoice::Entry, |s| {
             TerrainChoice::parse(s).expect("TERRAIN: entry, truth or truth-albedo")
         }),
+        entry: args.get(7).cloned(),
     };
     if let Some(only) = args.get(2).filter(|s| *s != "all") {
         let only: Vec<&str> = only.split(',').collect();

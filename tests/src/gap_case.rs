@@ -35,8 +35,8 @@ pub fn cases() -> Vec<(String, Vec<&'static str>)> {
     out
 }
 
-/// The entry every case runs on: mini's finest laser DEM.
-const ENTRY: &str = "laser/0.01";
+/// The entry a case runs on unless [`Setup::entry`] names another: mini's finest laser DEM.
+pub const DEFAULT_ENTRY: &str = "laser/0.01";
 
 /// The workflow's parameter targets: the least a fitted effect must come within its truth
 /// (the catalogue's documented tolerances), per parameter that has one.
@@ -234,6 +234,9 @@ pub struct Setup {
     /// The terrain the workflow looks at: the compiled entry, or (to measure what the entry
     /// costs) the campaign's truth in whole or in part.
     pub terrain: TerrainChoice,
+    /// The entry the workflow looks at, `None` for [`DEFAULT_ENTRY`]; mini also compiles
+    /// `laser/0.02` and `sfm/0.02` (the reconstruction's heights under its vertex colours).
+    pub entry: Option<String>,
 }
 
 /// What a case renders: the compiled entry or the campaign's truth.
@@ -304,7 +307,8 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         let cfg = PresetConfig::of(Preset::Mini);
         Terrain::build(&cfg, cfg.cell_m, seed)
     };
-    let geometry = match (setup.terrain, entry_geometry(&view, ENTRY).unwrap()) {
+    let entry = setup.entry.as_deref().unwrap_or(DEFAULT_ENTRY);
+    let geometry = match (setup.terrain, entry_geometry(&view, entry).unwrap()) {
         (TerrainChoice::Entry, entry) => entry,
         (TerrainChoice::Truth, _) => {
             let t = truth();
@@ -320,10 +324,10 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
             }
         }
         (TerrainChoice::EntryHeightsTrueAlbedo, Geometry::Mesh(_)) => {
-            panic!("{ENTRY} is a mesh entry: it has no heights to keep")
+            panic!("{entry} is a mesh entry: it has no heights to keep")
         }
     };
-    let gap = gap::run_on(&view, &geometry, ENTRY, &opts).unwrap();
+    let gap = gap::run_on(&view, &geometry, entry, &opts).unwrap();
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(camp.join("truth/hidden.json")).unwrap()).unwrap();
     let truth: Vec<Effect> = serde_json::from_value(truth["effects"].clone()).unwrap();
