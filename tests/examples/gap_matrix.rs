@@ -4,7 +4,8 @@
 //! (hidden → named, fitted vs true parameters, gap before → after) with the parameters off
 //! their targets, then the matrix and, per parameter, how many fits met the workflow's target
 //! (`gap_case::targets`: vignetting ±5 %, gamma ±0.02, blur ±0.15 px, `dk1` ±5 %, pose bias
-//! ±0.1° / ±3 mm per axis, shadows ±3°).
+//! ±0.1° / ±3 mm per axis, shadows ±3°) and how many errors lay within twice the standard
+//! error the workflow reported (about 95 % should, if that uncertainty is honest).
 //!
 //! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN] [ENTRY]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
@@ -54,8 +55,8 @@ fn main() {
         cases.retain(|(label, _)| only.contains(&label.as_str()));
     }
     let mut matrix = Confusion::default();
-    // `effect.parameter` → (within the target, checked).
-    let mut tally: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+    // `effect.parameter` → (within the target, checked, error within 2 reported σ, with a σ).
+    let mut tally: BTreeMap<String, (usize, usize, usize, usize)> = BTreeMap::new();
     for (label, hidden) in &cases {
         for &seed in &seeds {
             let r = run_case(&root, label, seed, hidden, &setup);
@@ -73,13 +74,17 @@ fn main() {
                 let t = tally.entry(c.what.clone()).or_default();
                 t.0 += usize::from(c.ok());
                 t.1 += 1;
+                if let Some(covered) = c.covered() {
+                    t.2 += usize::from(covered);
+                    t.3 += 1;
+                }
             }
             matrix.add(label, hidden, &r.named());
         }
     }
     println!("\n{matrix}");
-    println!("\nwithin the parameter targets:");
-    for (what, (ok, n)) in &tally {
-        println!("  {what:<30} {ok}/{n}");
+    println!("\nwithin the parameter targets (and within twice the reported σ):");
+    for (what, (ok, n, covered, with_se)) in &tally {
+        println!("  {what:<30} {ok}/{n}   ({covered}/{with_se})");
     }
 }

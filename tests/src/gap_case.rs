@@ -65,6 +65,9 @@ pub struct TargetCheck {
     /// Fitted − true, in the target's unit (relative targets: a fraction of the truth); `None`
     /// when the hidden effect was not named.
     pub error: Option<f64>,
+    /// The standard error the workflow reported with the fit, in the same unit; `None` when
+    /// it reported none (or named nothing).
+    pub std_err: Option<f64>,
     /// The target.
     pub tolerance: f64,
 }
@@ -73,6 +76,13 @@ impl TargetCheck {
     /// Named and within the target.
     pub fn ok(&self) -> bool {
         self.error.is_some_and(|e| e.abs() <= self.tolerance)
+    }
+
+    /// Whether the reported uncertainty covers the error (`|error| ≤ 2 σ`); `None` without a
+    /// fit or a reported σ. Over many fits about 95 % should, if the σ the workflow prints is
+    /// honest.
+    pub fn covered(&self) -> Option<bool> {
+        Some(self.error?.abs() <= 2.0 * self.std_err?)
     }
 }
 
@@ -85,26 +95,33 @@ impl fmt::Display for TargetCheck {
     }
 }
 
+/// A fitted value with the standard error the workflow reported for it, if any.
+pub type Fit = (f64, Option<f64>);
+
 /// Every parameter of the `hidden` effects that has a target ([`targets`]), checked against
-/// `fitted(effect, parameter)` (`None`: the effect was not named).
+/// `fitted(effect, parameter)`: the value and the reported standard error (`None`: the effect
+/// was not named).
 pub fn target_checks(
     hidden: &[Effect],
-    fitted: &dyn Fn(&str, &str) -> Option<f64>,
+    fitted: &dyn Fn(&str, &str) -> Option<Fit>,
 ) -> Vec<TargetCheck> {
     let mut out = Vec::new();
     for t in hidden {
         let name = t.name();
         let truth = t.params();
         let fit = |k: &str| fitted(name, k);
-        let mut push = |k: &str, error: Option<f64>, tolerance: f64| {
+        let mut push = |k: &str, checked: Option<Fit>, tolerance: f64| {
             out.push(TargetCheck {
                 what: format!("{name}.{k}"),
-                error,
+                error: checked.map(|c| c.0),
+                std_err: checked.and_then(|c| c.1),
                 tolerance,
             });
         };
-        let rel = |k: &str| fit(k).map(|f| f / truth[k] - 1.0);
-        let abs = |k: &str| fit(k).map(|f| f - truth[k]);
+        // Relative targets: the error and its σ as fractions of the truth.
+        let rel =
+            |k: &str| fit(k).map(|(f, se)| (f / truth[k] - 1.0, se.map(|s| s / truth[k].abs())));
+        let abs = |k: &str| fit(k).map(|(f, se)| (f - truth[k], se));
         match name {
             "vignetting" => push("strength", rel("strength"), targets::VIGNETTING_REL),
             "gamma" => push("gamma", abs("gamma"), targets::GAMMA),
@@ -121,7 +138,8 @@ pub fn target_checks(
                 }
             }
             "shadows" => {
-                let daz = abs("azimuth_deg").map(|d| (d + 540.0).rem_euclid(360.0) - 180.0);
+                let daz =
+                    abs("azimuth_deg").map(|(d, se)| ((d + 540.0).rem_euclid(360.0) - 180.0, se));
                 push("azimuth_deg", daz, targets::SHADOWS_DEG);
                 push("elevation_deg", abs("elevation_deg"), targets::SHADOWS_DEG);
             }
@@ -168,7 +186,15 @@ impl CaseResult {
     /// Every parameter of the hidden effects that has a target ([`targets`]), checked against
     /// its fit ([`target_checks`]).
     pub fn target_checks(&self) -> Vec<TargetCheck> {
-        target_checks(&self.truth, &|e, k| self.fitted(e, k))
+        target_checks(&self.truth, &|e, k| {
+            Some((self.fitted(e, k)?, self.std_err(e, k)))
+        })
+    }
+
+    /// The standard error the workflow reported for `effect`'s parameter `param`.
+    pub fn std_err(&self, effect: &str, param: &str) -> Option<f64> {
+        let n = self.gap.named.iter().find(|n| n.effect == effect)?;
+        n.std_err.get(param).copied()
     }
 
     /// One line: hidden → named, every true parameter against its fit, gap before → after.
@@ -177,12 +203,7 @@ impl CaseResult {
         for t in &self.truth {
             for (k, v) in t.params() {
                 let f = self.fitted(t.name(), k);
-                let se = self
-                    .gap
-                    .named
-                    .iter()
-                    .find(|n| n.effect == t.name())
-                    .and_then(|n| n.std_err.get(k));
+                let se = self.std_err(t.name(), k);
                 detail += &format!(
                     " {}.{k}={v:.4}→{}{}",
                     t.name(),
@@ -402,13 +423,13 @@ mod tests {
                 rotation_deg: [0.3, 0.0, 0.0],
             },
         ];
-        let fitted = |e: &str, k: &str| -> Option<f64> {
+        let fitted = |e: &str, k: &str| -> Option<Fit> {
             match (e, k) {
-                // 6 % off: a miss.
-                ("distortion", "dk1") => Some(-0.0424),
-                // Across north: 2° off, within 3°.
-                ("shadows", "azimuth_deg") => Some(1.0),
-                ("shadows", "elevation_deg") => Some(42.5),
+                // 6 % off: a miss, and 0.0010 is 2.5 % of the truth, which does not cover it.
+                ("distortion", "dk1") => Some((-0.0424, Some(0.0010))),
+                // Across north: 2° off, within 3°, covered by a σ of 1.5°.
+                ("shadows", "azimuth_deg") => Some((1.0, Some(1.5))),
+                ("shadows", "elevation_deg") => Some((42.5, None)),
                 _ => None,
             }
         };
@@ -417,6 +438,10 @@ mod tests {
             checks.iter().map(|c| (c.what.as_str(), c)).collect();
         assert!((by["distortion.dk1"].error.unwrap() - 0.06).abs() < 1e-9);
         assert!(!by["distortion.dk1"].ok());
+        assert!((by["distortion.dk1"].std_err.unwrap() - 0.025).abs() < 1e-9);
+        assert_eq!(by["distortion.dk1"].covered(), Some(false));
+        assert_eq!(by["shadows.azimuth_deg"].covered(), Some(true));
+        assert_eq!(by["shadows.elevation_deg"].covered(), None);
         assert!((by["shadows.azimuth_deg"].error.unwrap() - 2.0).abs() < 1e-9);
         assert!(by["shadows.azimuth_deg"].ok() && by["shadows.elevation_deg"].ok());
         // A pose bias not named: every axis a miss.
