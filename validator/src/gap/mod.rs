@@ -1574,13 +1574,26 @@ fn blur_stage(ctx: &Ctx<'_>, model: &mut SensorModel, min_share: f64, out: &mut 
     if m.sigma_px < BLUR_MIN_PX || share < min_share {
         return;
     }
+    // The captures' spread (each left out in turn) and the estimator's calibration in
+    // quadrature.
+    let jack = jackknife(ctx.n_folds, &|hold| {
+        let kept: Vec<ImagePair<'_>> = views
+            .iter()
+            .zip(&ctx.folds)
+            .filter(|(_, &f)| f != hold)
+            .map(|(v, _)| *v)
+            .collect();
+        vec![blur::measure(&kept).map_or(m.sigma_px, |k| k.sigma_px)]
+    });
+    let spread = jack.map_or(0.0, |j| j[0]);
+    let std_err = BTreeMap::from([("sigma_px".to_string(), spread.hypot(blur::CALIBRATION_PX))]);
     let e = Effect::Blur {
         sigma_px: m.sigma_px,
     };
     upsert(model, e);
     out.push(named(
         &e,
-        BTreeMap::new(),
+        std_err,
         share,
         "blur",
         format!(
