@@ -243,7 +243,9 @@ pub struct Named {
     /// Fitted parameters.
     pub params: BTreeMap<String, f64>,
     /// Standard error of each parameter: the larger of the least-squares estimate and the
-    /// jackknife over captures (the spread of the fits that each leave one capture out). The
+    /// jackknife over captures (the spread of the fits that each leave one capture out); for
+    /// `blur` and `texture-lowpass`, which are measured rather than fitted, the jackknife and
+    /// the measurement's calibration over mini's campaigns in quadrature. The
     /// least-squares one treats every pixel as an independent observation, while neighbouring
     /// residuals are correlated, so alone it is far too small (a fitted dk1 off by 0.003 came
     /// with 0.0001); with two captures the jackknife is itself rough, but of the right size
