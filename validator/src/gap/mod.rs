@@ -930,8 +930,8 @@ fn geometry_stage(
     // the texture's pull, the pairs do not, and how far the pairs moved the render's own fit
     // is the scale of that pull. Added in quadrature to the pose bias's errors it raised the
     // share of axes whose fitted − true error was within twice the reported error from 51 to
-    // 80 of 84 (mini seeds 101–107, a pose bias alone and next to a vignetting; pitch errors
-    // 0.22–0.41° for errors up to 0.42°). Not to the distortion's: the render's own fit has one
+    // 80 of 84 (mini seeds 101–107, a pose bias alone and next to a vignetting; pitch standard
+    // errors 0.05–0.41° for errors up to 0.42°). Not to the distortion's: the render's own fit has one
     // radial term, the joint one two, so their difference is the terms' trade-off.
     if let Some(w) = &witness {
         for ((e, r), p) in std_err.iter_mut().zip(w.render_only).zip(f.params).skip(2) {
