@@ -2,7 +2,8 @@
 //!
 //! The file is written as text, not through a serializer, so it reads like one a person wrote:
 //! grouped tables, comments, stable key order. It references only raw files, never `truth/`;
-//! its `[lighting]` is exactly the light the captures were rendered with. The extra format
+//! its `[lighting]` is the light the captures were rendered with, as the lab surveyed it (a few
+//! degrees off when it casts hidden shadows: `effects::recorded_light`). The extra format
 //! copies (`scans/pos2.ply`, `pos3.e57`, `pos4.las`) and `sfm/mesh.ply` are deliberately not
 //! referenced: they exist for format tests and hold the same data as the referenced files.
 //! Nor is `sfm/mesh_gcp.csv`: the reconstruction is aligned with `align = "laser"`; a test or a
@@ -135,5 +136,5 @@ what the generator knows and the campaign does not; no campaign entry points int
 | `truth/captures.json` | every true `ground_from_camera` (includes the hidden pose bias) and the rig pose |
 | `truth/markers.json` | true ball centres |
 | `truth/hidden.json` | the hidden effects and their parameters, and the full real-image model |
-| `truth/lighting.json` | the light the captures were rendered with (= campaign `[lighting]`) |
+| `truth/lighting.json` | the light the captures were rendered with (= campaign `[lighting]`, except under hidden shadows, where the campaign records it a few degrees off, as surveyed) |
 ";

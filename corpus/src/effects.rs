@@ -9,7 +9,10 @@
 //! range (elevation 15–30°) like any effect's parameters, or given by the user — and shading and
 //! shadows share one light. (The campaign's own light is drawn at 45–70°, where a `mini`
 //! terrain casts no shadow its cameras see, so a hidden `shadows` taking that light changed
-//! nothing in the images.)
+//! nothing in the images.) The campaign file then records that light as a lab surveys it,
+//! not exactly: [`recorded_light`] is off the true direction by 2–4° in azimuth and 1–2° in
+//! elevation, so the light direction is a parameter the gap workflow must find, not one it is
+//! given (`truth/lighting.json` and `truth/hidden.json` hold the true light).
 //!
 //! Independently of the hidden list, every real image gets a mild *baseline* sensor noise
 //! (gain 0.05 DN/DN, read σ 0.8 DN) so that the two frames of a pose differ and real-vs-real
@@ -18,6 +21,8 @@
 
 use std::collections::BTreeMap;
 
+use rand::Rng;
+use regolith_validator::render::Light;
 use regolith_validator::sensor::{Effect, SensorModel};
 
 use crate::seeding::stage_rng;
@@ -133,6 +138,40 @@ pub fn real_model(hidden: &SensorModel) -> SensorModel {
     SensorModel { effects }
 }
 
+/// Azimuth error of a surveyed light that casts hidden shadows, degrees (either sign).
+pub const RECORD_AZIMUTH_ERROR_DEG: std::ops::Range<f64> = 2.0..4.0;
+/// Elevation error of a surveyed light that casts hidden shadows, degrees (either sign).
+pub const RECORD_ELEVATION_ERROR_DEG: std::ops::Range<f64> = 1.0..2.0;
+
+/// The light the campaign file records: `light` itself, or, when hidden `shadows` cast by it
+/// must be found, `light` off by a drawn survey error ([`RECORD_AZIMUTH_ERROR_DEG`],
+/// [`RECORD_ELEVATION_ERROR_DEG`], random signs, stage RNG `lighting.record`; rounded to
+/// 0.1° like the light itself). The ambient share is recorded as it is.
+pub fn recorded_light(light: &Light, hidden: &SensorModel, seed: u64) -> Light {
+    if !hidden
+        .effects
+        .iter()
+        .any(|e| matches!(e, Effect::Shadows { .. }))
+    {
+        return *light;
+    }
+    let mut rng = stage_rng(seed, "lighting.record");
+    let mut off = |range: std::ops::Range<f64>| {
+        let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        sign * rng.gen_range(range)
+    };
+    let (daz, del) = (
+        off(RECORD_AZIMUTH_ERROR_DEG),
+        off(RECORD_ELEVATION_ERROR_DEG),
+    );
+    let round = |v: f64| (v * 10.0).round() / 10.0;
+    Light {
+        azimuth_deg: round((light.azimuth_deg + daz).rem_euclid(360.0)),
+        elevation_deg: round((light.elevation_deg + del).clamp(1.0, 89.0)),
+        ambient: light.ambient,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -167,6 +206,28 @@ mod tests {
             e => panic!("{e:?}"),
         }
         assert_eq!(resolve(&specs, 5).unwrap(), m, "same seed, same draw");
+    }
+
+    #[test]
+    fn a_shadow_casting_light_is_recorded_off_by_a_survey_error_and_others_exactly() {
+        let light = Light {
+            azimuth_deg: 359.0,
+            elevation_deg: 20.0,
+            ambient: 0.3,
+        };
+        let plain = resolve(&parse_list("vignetting").unwrap(), 7).unwrap();
+        assert_eq!(recorded_light(&light, &plain, 7), light);
+        let shadows = resolve(&parse_list("shadows").unwrap(), 7).unwrap();
+        for seed in 0..40 {
+            let r = recorded_light(&light, &shadows, seed);
+            let daz = (r.azimuth_deg - light.azimuth_deg + 540.0).rem_euclid(360.0) - 180.0;
+            let del = r.elevation_deg - light.elevation_deg;
+            assert!((0.0..360.0).contains(&r.azimuth_deg), "{r:?}");
+            assert!((1.95..=4.05).contains(&daz.abs()), "seed {seed}: {daz}");
+            assert!((0.95..=2.05).contains(&del.abs()), "seed {seed}: {del}");
+            assert_eq!(r.ambient, light.ambient);
+            assert_eq!(recorded_light(&light, &shadows, seed), r, "deterministic");
+        }
     }
 
     #[test]

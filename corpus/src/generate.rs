@@ -88,6 +88,9 @@ pub fn generate(
             light.elevation_deg = elevation_deg;
         }
     }
+    // What the campaign file records: the lab light as surveyed, a few degrees off the true
+    // one when it casts hidden shadows (see `effects::recorded_light`).
+    let recorded = effects::recorded_light(&light, &hidden, seed);
     let mut sink = Sink::new(out)?;
 
     progress("terrain", 0.0);
@@ -198,7 +201,7 @@ pub fn generate(
     progress("truth", 0.0);
     let plan = CampaignPlan {
         cfg: &cfg,
-        light: &light,
+        light: &recorded,
         scans: scans.iter().map(|s| s.name.clone()).collect(),
         captures: captures.iter().map(|c| c.name.clone()).collect(),
         truth_cell_m: cell,

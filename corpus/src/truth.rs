@@ -194,7 +194,7 @@ impl HiddenTruth {
     pub fn new(hidden: &SensorModel, real: &SensorModel) -> HiddenTruth {
         let mut notes = BTreeMap::new();
         notes.insert("image effects", "vignetting, blur, exposure, noise, gamma: applied to every captures/*.png by SensorModel::image (baseline noise gain 0.05, read 0.8 DN unless noise is hidden)");
-        notes.insert("shadows", "captures rendered with cast shadows of the [lighting] light; a plain simulation does not draw them");
+        notes.insert("shadows", "captures rendered with cast shadows of the true light (truth/lighting.json); campaign.toml [lighting] records it 2-4 deg off in azimuth and 1-2 deg in elevation, as surveyed; a plain simulation draws no cast shadows");
         notes.insert(
             "distortion",
             "captures rendered with k1+dk1, k2+dk2; calib/*.yaml hold the calibrated k1, k2",
@@ -324,7 +324,7 @@ pub fn write_all(
             azimuth_deg: light.azimuth_deg,
             elevation_deg: light.elevation_deg,
             ambient: light.ambient,
-            convention: "azimuth from +x toward +y, elevation above the horizontal; same as campaign.toml [lighting]",
+            convention: "azimuth from +x toward +y, elevation above the horizontal, as campaign.toml [lighting]; the true light (the campaign records it as surveyed)",
         },
     )
 }

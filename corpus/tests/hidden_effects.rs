@@ -207,6 +207,19 @@ fn default_shadows_draw_a_low_light_and_move_the_lab_light_there() {
         light["ambient"],
         json(plain(), "truth/lighting.json")["ambient"]
     );
+    // The campaign file records that light as surveyed: a few degrees off.
+    let campaign: toml::Value =
+        toml::from_str(&std::fs::read_to_string(dir.join("campaign.toml")).unwrap()).unwrap();
+    let recorded = &campaign["lighting"];
+    let off = |k: &str| recorded[k].as_float().unwrap() - light[k].as_f64().unwrap();
+    let daz = (off("azimuth_deg") + 540.0).rem_euclid(360.0) - 180.0;
+    assert!((1.95..=4.05).contains(&daz.abs()), "azimuth off {daz}");
+    assert!((0.95..=2.05).contains(&off("elevation_deg").abs()));
+    assert_eq!(
+        recorded["ambient"].as_float(),
+        light["ambient"].as_f64(),
+        "the ambient share is recorded as it is"
+    );
 }
 
 /// Blob check for every visible marker: near the true projection, and for geometric effects

@@ -23,8 +23,8 @@
 //!    views see the same terrain at different radii, [`overlap`], which the entry's own
 //!    radiance errors do not bias, and which can witness a falloff too weak for the render's
 //!    samples to name alone), then cast `shadows` of the campaign light where they would fall
-//!    ([`shadows`]: too small and sharp for the low-passed photometric fit; the direction is then
-//!    refined), then `texture-lowpass` ([`texture`]: the texture's effective blur against the
+//!    ([`shadows`]: too small and sharp for the low-passed photometric fit; the light's
+//!    direction, recorded as the lab surveyed it, is searched first), then `texture-lowpass` ([`texture`]: the texture's effective blur against the
 //!    real albedo gathered on the ground in the texture's cells, beyond what a faithful texture
 //!    of its cell size shows; heightfield entries),
 //!    then `noise` (from the repeat frames: on the linear signal by the photon-transfer fit
@@ -244,8 +244,9 @@ pub struct Named {
     pub params: BTreeMap<String, f64>,
     /// Standard error of each parameter: the larger of the least-squares estimate and the
     /// jackknife over captures (the spread of the fits that each leave one capture out); for
-    /// `blur` and `texture-lowpass`, which are measured rather than fitted, the jackknife and
-    /// the measurement's calibration over mini's campaigns in quadrature. The
+    /// `blur`, `texture-lowpass` and the `shadows` direction, which are measured or searched
+    /// rather than fitted, the jackknife and the measurement's calibration over mini's
+    /// campaigns in quadrature. The
     /// least-squares one treats every pixel as an independent observation, while neighbouring
     /// residuals are correlated, so alone it is far too small (a fitted dk1 off by 0.003 came
     /// with 0.0001); with two captures the jackknife is itself rough, but of the right size
@@ -1624,28 +1625,14 @@ fn blur_stage(ctx: &Ctx<'_>, model: &mut SensorModel, min_share: f64, out: &mut 
     ));
 }
 
-/// Cast shadows of the campaign light ([`shadows`]). Updates `model`.
-fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
-    if has(model, "shadows") {
-        return;
-    }
-    let with = |az: f64, el: f64| {
-        let mut m = model.clone();
-        upsert(
-            &mut m,
-            Effect::Shadows {
-                azimuth_deg: az,
-                elevation_deg: el,
-            },
-        );
-        m
-    };
-    let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
-    let lit = ctx.predict_sampled(model, 1);
-    let light = (ctx.light.azimuth_deg, ctx.light.elevation_deg);
-    let shadowed = ctx.predict_sampled(&with(light.0, light.1), 1);
-    let views: Vec<shadows::ShadowView<'_>> = ctx
-        .views
+/// The views of a shadow test: the real frame means against `lit` and `shadowed` predictions.
+fn shadow_views<'a>(
+    ctx: &Ctx<'_>,
+    means: &'a [Vec<f32>],
+    lit: &'a [Prediction],
+    shadowed: &'a [Prediction],
+) -> Vec<shadows::ShadowView<'a>> {
+    ctx.views
         .iter()
         .enumerate()
         .map(|(i, v)| shadows::ShadowView {
@@ -1657,63 +1644,120 @@ fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
             h: v.height,
             fold: ctx.folds[i],
         })
-        .collect();
-    let ev = shadows::evidence(&views);
+        .collect()
+}
+
+/// Cast shadows of the campaign light ([`shadows`]). Updates `model`.
+fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
+    if has(model, "shadows") {
+        return;
+    }
+    let with = |d: (f64, f64)| {
+        let mut m = model.clone();
+        upsert(
+            &mut m,
+            Effect::Shadows {
+                azimuth_deg: d.0,
+                elevation_deg: d.1,
+            },
+        );
+        m
+    };
+    // The model's render under a light from `d`, without cast shadows.
+    let lit_at = |d: (f64, f64)| -> Vec<Prediction> {
+        let light = Light {
+            azimuth_deg: d.0,
+            elevation_deg: d.1,
+            ..ctx.light
+        };
+        ctx.views
+            .iter()
+            .map(|v| predict(&ctx.scene, &light, v, model, 1))
+            .collect()
+    };
+    let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
+    let record = (ctx.light.azimuth_deg, ctx.light.elevation_deg);
+    let lit = ctx.predict_sampled(model, 1);
+    let shadowed = ctx.predict_sampled(&with(record), 1);
+    // A light that casts no shadow the views would see has nothing to test or refine.
+    if shadows::evidence(&shadow_views(ctx, &means, &lit, &shadowed)).pixels
+        < shadows::MIN_SHADOW_PIXELS
+    {
+        return;
+    }
+    // The direction first: the campaign records its light as surveyed, a few degrees off, and
+    // shadows tested where a wrong light casts them are half missed.
+    let near = shadows::near_shadows(&shadow_views(ctx, &means, &lit, &shadowed));
+    // The direction scored on the views `keep` selects, searched from the record.
+    let search = |keep: &dyn Fn(usize) -> bool| {
+        let idx: Vec<usize> = (0..ctx.views.len()).filter(|&i| keep(i)).collect();
+        let near: Vec<&[bool]> = idx.iter().map(|&i| near[i].as_slice()).collect();
+        shadows::refine_direction(record, |d| {
+            let m = with(d);
+            let preds: Vec<Prediction> = idx
+                .iter()
+                .map(|&i| predict(&ctx.scene, &ctx.light, &ctx.views[i], &m, 1))
+                .collect();
+            let v: Vec<shadows::ShadowView<'_>> = idx
+                .iter()
+                .zip(&preds)
+                .map(|(&i, p)| shadows::ShadowView {
+                    real: &means[i],
+                    lit: &lit[i].dn,
+                    shadowed: &p.dn,
+                    mask: &lit[i].mask,
+                    w: ctx.views[i].width,
+                    h: ctx.views[i].height,
+                    fold: ctx.folds[i],
+                })
+                .collect();
+            shadows::direction_score(&v, &near)
+        })
+    };
+    let (mut direction, _) = search(&|_| true);
+    // A light fixed in the lab casts the same shadows in every capture: the refined direction
+    // replaces the record only if it is better in each capture fold, not just overall (on mini
+    // seed 103, 513 shadow pixels, the overall optimum was 3.5° off the true light).
+    let fold_score = |preds: &[Prediction], fold: usize| {
+        let (v, n): (Vec<_>, Vec<&[bool]>) = shadow_views(ctx, &means, &lit, preds)
+            .into_iter()
+            .zip(near.iter().map(Vec::as_slice))
+            .filter(|(v, _)| v.fold == fold)
+            .unzip();
+        shadows::direction_score(&v, &n)
+    };
+    if direction != record {
+        let refined = ctx.predict_sampled(&with(direction), 1);
+        if !(0..ctx.n_folds).all(|f| fold_score(&refined, f) < fold_score(&shadowed, f)) {
+            direction = record;
+        }
+    }
+    let moved = (direction != record)
+        .then(|| (lit_at(direction), ctx.predict_sampled(&with(direction), 1)));
+    let (lit_at_light, shadowed_at_light) =
+        moved.as_ref().map_or((&lit, &shadowed), |m| (&m.0, &m.1));
+    let ev = shadows::evidence(&shadow_views(ctx, &means, lit_at_light, shadowed_at_light));
     if !ev.convincing() {
         return;
     }
-    let level = shadows::log_level(&views);
-    let score = |preds: &[Prediction]| {
-        let v: Vec<shadows::ShadowView<'_>> = views
-            .iter()
-            .zip(preds)
-            .map(|(v, p)| shadows::ShadowView {
-                shadowed: &p.dn,
-                ..*v
-            })
-            .collect();
-        -shadows::log_residual(&v, level)
-    };
-    let mut direction = light;
-    let mut best = score(&shadowed);
-    for step in [4.0, 2.0, 1.0, 0.5] {
-        for axis in 0..2 {
-            for sign in [-1.0, 1.0] {
-                let mut d = direction;
-                if axis == 0 {
-                    d.0 += sign * step;
-                } else {
-                    d.1 = (d.1 + sign * step).clamp(5.0, 89.0);
-                }
-                let e = score(&ctx.predict_sampled(&with(d.0, d.1), 1));
-                if e > best {
-                    best = e;
-                    direction = d;
-                }
-            }
-        }
-    }
-    // A light fixed in the lab casts the same shadows in every capture: the refined direction
-    // replaces the campaign's only if it is better in each capture fold, not just overall (on
-    // mini seed 103, 513 shadow pixels, the overall optimum was 3.5° off the true light).
-    if direction != light {
-        let refined = ctx.predict_sampled(&with(direction.0, direction.1), 1);
-        let in_fold = |preds: &[Prediction], fold: usize| {
-            let v: Vec<shadows::ShadowView<'_>> = views
-                .iter()
-                .zip(preds)
-                .filter(|(v, _)| v.fold == fold)
-                .map(|(v, p)| shadows::ShadowView {
-                    shadowed: &p.dn,
-                    ..*v
-                })
-                .collect();
-            shadows::log_residual(&v, level)
-        };
-        if !(0..ctx.n_folds).all(|f| in_fold(&refined, f) < in_fold(&shadowed, f)) {
-            direction = light;
-        }
-    }
+    // The direction's standard errors: the jackknife over captures (each searched alone when
+    // the others are left out) and the search's calibration on the entry, in quadrature.
+    let jack = jackknife(ctx.n_folds, &|hold| {
+        let (d, _) = search(&|i| ctx.folds[i] != hold);
+        vec![d.0, d.1]
+    });
+    let calibration = [
+        shadows::CALIBRATION_AZIMUTH_DEG,
+        shadows::CALIBRATION_ELEVATION_DEG,
+    ];
+    let std_err: BTreeMap<String, f64> = ["azimuth_deg", "elevation_deg"]
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            let j = jack.as_ref().map_or(0.0, |j| j[k]);
+            (name.to_string(), j.hypot(calibration[k]))
+        })
+        .collect();
     let e = Effect::Shadows {
         azimuth_deg: direction.0.rem_euclid(360.0),
         elevation_deg: direction.1,
@@ -1721,12 +1765,18 @@ fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
     upsert(model, e);
     out.push(named(
         &e,
-        BTreeMap::new(),
+        std_err,
         ev.explained,
         "shadows",
         format!(
-            "{} shadow pixels of the campaign light: MSE {:.0} DN² lit vs {:.0} DN² shadowed",
-            ev.pixels, ev.mse_lit, ev.mse_shadowed
+            "{} shadow pixels of the campaign light ({:.1}°/{:.1}°, recorded {:.1}°/{:.1}°): MSE {:.0} DN² lit vs {:.0} DN² shadowed",
+            ev.pixels,
+            direction.0.rem_euclid(360.0),
+            direction.1,
+            record.0,
+            record.1,
+            ev.mse_lit,
+            ev.mse_shadowed
         ),
     ));
 }
