@@ -208,12 +208,17 @@ pub fn refine_direction(
     best
 }
 
-/// `ln((real + 1) / (prediction + 1))` of every terrain pixel of every view.
+/// `ln((real + 1) / (prediction + 1))` at pixel `i` of `v`.
+fn log_ratio(v: &ShadowView<'_>, i: usize) -> f64 {
+    ((f64::from(v.real[i]) + 1.0) / (f64::from(v.shadowed[i]) + 1.0)).ln()
+}
+
+/// [`log_ratio`] of every terrain pixel of every view.
 fn log_ratios<'a>(views: &'a [ShadowView<'a>]) -> impl Iterator<Item = f64> + 'a {
     views.iter().flat_map(|v| {
         (0..v.w * v.h)
             .filter(|&i| v.mask[i])
-            .map(|i| ((f64::from(v.real[i]) + 1.0) / (f64::from(v.shadowed[i]) + 1.0)).ln())
+            .map(|i| log_ratio(v, i))
     })
 }
 
@@ -258,11 +263,7 @@ pub fn direction_score(views: &[ShadowView<'_>], near: &[&[bool]]) -> f64 {
     let (sum, n) = views
         .iter()
         .zip(near)
-        .flat_map(|(v, near)| {
-            (0..v.w * v.h)
-                .filter(|&i| near[i])
-                .map(|i| ((f64::from(v.real[i]) + 1.0) / (f64::from(v.shadowed[i]) + 1.0)).ln())
-        })
+        .flat_map(|(v, near)| (0..v.w * v.h).filter(|&i| near[i]).map(|i| log_ratio(v, i)))
         .fold((0.0, 0usize), |(s, n), r| (s + (r - level).abs(), n + 1));
     if n == 0 {
         f64::INFINITY
@@ -298,6 +299,13 @@ pub fn log_residual(views: &[ShadowView<'_>], level: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A `w x h` image at `level` times 35 left of column `edge` (in shadow) and 100 beyond.
+    fn edge_image(w: usize, h: usize, edge: usize, level: f32) -> Vec<f32> {
+        (0..w * h)
+            .map(|i| level * if (i % w) < edge { 35.0 } else { 100.0 })
+            .collect()
+    }
 
     #[test]
     fn real_shadows_are_explained_and_absent_ones_are_not() {
@@ -384,11 +392,7 @@ mod tests {
     fn the_direction_score_is_taken_near_the_shadows_after_each_candidates_level() {
         let (w, h) = (80, 40);
         let mask = vec![true; w * h];
-        let image = |edge: usize, level: f32| -> Vec<f32> {
-            (0..w * h)
-                .map(|i| level * if (i % w) < edge { 35.0 } else { 100.0 })
-                .collect()
-        };
+        let image = |edge: usize, level: f32| edge_image(w, h, edge, level);
         let real = image(20, 1.0);
         let lit = image(0, 1.0);
         let view = |shadowed: &'static [f32]| ShadowView {
@@ -417,11 +421,7 @@ mod tests {
     fn the_log_residual_ignores_the_level_and_sees_where_shadows_fall() {
         let (w, h) = (40, 40);
         let mask = vec![true; w * h];
-        let shadow_at = |edge: usize, level: f32| -> Vec<f32> {
-            (0..w * h)
-                .map(|i| level * if (i % w) < edge { 35.0 } else { 100.0 })
-                .collect()
-        };
+        let shadow_at = |edge: usize, level: f32| edge_image(w, h, edge, level);
         let real = shadow_at(20, 1.0);
         let score = |pred: &[f32]| {
             let v = [ShadowView {
