@@ -1726,14 +1726,14 @@ fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Vec<Named>) {
             .unzip();
         shadows::direction_score(&v, &n)
     };
-    if direction != record {
-        let refined = ctx.predict_sampled(&with(direction), 1);
-        if !(0..ctx.n_folds).all(|f| fold_score(&refined, f) < fold_score(&shadowed, f)) {
+    let mut refined = (direction != record).then(|| ctx.predict_sampled(&with(direction), 1));
+    if let Some(r) = &refined {
+        if !(0..ctx.n_folds).all(|f| fold_score(r, f) < fold_score(&shadowed, f)) {
             direction = record;
+            refined = None;
         }
     }
-    let moved = (direction != record)
-        .then(|| (lit_at(direction), ctx.predict_sampled(&with(direction), 1)));
+    let moved = refined.map(|r| (lit_at(direction), r));
     let (lit_at_light, shadowed_at_light) =
         moved.as_ref().map_or((&lit, &shadowed), |m| (&m.0, &m.1));
     let ev = shadows::evidence(&shadow_views(ctx, &means, lit_at_light, shadowed_at_light));
