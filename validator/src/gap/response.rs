@@ -37,8 +37,8 @@
 use serde::Serialize;
 
 use super::blur::erf;
+use super::context::{honest_std_err, jackknife_spread};
 use super::lsq::{solve, Problem};
-use super::{honest_std_err, jackknife_spread};
 use crate::sensor::image::noise_variance;
 
 /// Width of a transfer-curve level bin, DN.

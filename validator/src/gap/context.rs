@@ -1,0 +1,290 @@
+//! The run's shared context: the views of the release with the entry's geometry and the
+//! campaign light ([`Ctx`]), their capture folds, and the cross-validation and jackknife every
+//! stage scores and bounds its effects with.
+
+use std::collections::BTreeMap;
+
+use regolith_reader::{ReaderError, ReleaseView};
+
+use super::measure::{self, Metrics};
+use super::select::Candidate;
+use super::stages::geometry::geometric_masks;
+use super::stages::texture::TextureInputs;
+use super::views::{load_views, predict, GapView, Prediction};
+use super::{markers, param_map, shadows, texture, GapOptions, Named, ScoredCandidate};
+use crate::render::{Geometry, Light, Scene};
+use crate::sensor::{Effect, SensorModel};
+use crate::validate::campaign_light;
+
+/// Standard errors by which a fitted effect must differ from its neutral values to be named (a
+/// photometric effect's parameters; a distortion's displacement at 0.7 of the radius). With
+/// nothing hidden, the full-resolution estec `laser/0.015` entry chose `vignetting` (5.4 DN²
+/// held out, over its 3 DN² floor) whose final strength, next to the free gain, was
+/// 0.0007 ± 0.0083.
+pub(crate) const SIGNIFICANCE: f64 = 2.0;
+
+/// Fold of each view: the index of its capture (views of one capture are held out together).
+pub(crate) fn folds(views: &[GapView]) -> Vec<usize> {
+    let mut names: Vec<&str> = views.iter().map(|v| v.capture.as_str()).collect();
+    names.sort_unstable();
+    names.dedup();
+    if names.len() >= 2 {
+        views
+            .iter()
+            .map(|v| names.iter().position(|n| *n == v.capture).unwrap_or(0))
+            .collect()
+    } else {
+        // One capture: hold out cameras instead.
+        let mut cams: Vec<&str> = views.iter().map(|v| v.camera.as_str()).collect();
+        cams.sort_unstable();
+        cams.dedup();
+        views
+            .iter()
+            .map(|v| cams.iter().position(|n| *n == v.camera).unwrap_or(0))
+            .collect()
+    }
+}
+
+/// Held-out error of a fit: mean over folds of `test(train on the others, fold)`; with one
+/// fold, the in-sample error.
+pub(crate) fn cross_validate(
+    n_folds: usize,
+    fit_and_test: &(dyn Fn(Option<usize>) -> f64 + Sync),
+) -> f64 {
+    if n_folds < 2 {
+        return fit_and_test(None);
+    }
+    (0..n_folds).map(|f| fit_and_test(Some(f))).sum::<f64>() / n_folds as f64
+}
+
+/// Jackknife standard errors over folds: `fit(f)` gives the parameters fitted without fold `f`;
+/// `sqrt((n − 1) / n · Σ (θ_f − θ̄)²)` per parameter. `None` with fewer than two folds.
+pub(crate) fn jackknife(
+    n_folds: usize,
+    fit: &(dyn Fn(usize) -> Vec<f64> + Sync),
+) -> Option<Vec<f64>> {
+    if n_folds < 2 {
+        return None;
+    }
+    jackknife_spread(&(0..n_folds).map(fit).collect::<Vec<_>>())
+}
+
+/// The jackknife standard errors of leave-one-fold-out `fits` (see [`jackknife`]); `None` with
+/// fewer than two.
+pub(crate) fn jackknife_spread(fits: &[Vec<f64>]) -> Option<Vec<f64>> {
+    if fits.len() < 2 {
+        return None;
+    }
+    let n_folds = fits.len();
+    let k = fits.first()?.len();
+    let n = n_folds as f64;
+    Some(
+        (0..k)
+            .map(|i| {
+                let mean = fits.iter().map(|f| f[i]).sum::<f64>() / n;
+                let ss = fits.iter().map(|f| (f[i] - mean).powi(2)).sum::<f64>();
+                ((n - 1.0) / n * ss).sqrt()
+            })
+            .collect(),
+    )
+}
+
+/// The larger of the least-squares and the jackknife standard error, per parameter.
+pub(crate) fn honest_std_err<const K: usize>(formal: [f64; K], jack: Option<Vec<f64>>) -> [f64; K] {
+    let mut out = formal;
+    if let Some(j) = jack {
+        for (o, j) in out.iter_mut().zip(j) {
+            *o = o.max(j);
+        }
+    }
+    out
+}
+
+pub(crate) struct Ctx<'a> {
+    pub(crate) geometry: &'a Geometry,
+    pub(crate) scene: Scene<'a>,
+    pub(crate) light: Light,
+    pub(crate) views: Vec<GapView>,
+    pub(crate) folds: Vec<usize>,
+    pub(crate) n_folds: usize,
+    pub(crate) supersample: u32,
+    /// Ground-frame survey markers, kept out of the geometric fit ([`markers`]).
+    pub(crate) markers: Vec<[f64; 3]>,
+}
+
+impl<'a> Ctx<'a> {
+    /// The views of `opts.captures` and `opts.cameras` (all when empty) of the release, with
+    /// the entry's `geometry`, rendered at `opts.supersample`.
+    pub(crate) fn load(
+        view: &ReleaseView,
+        geometry: &'a Geometry,
+        opts: &GapOptions,
+    ) -> Result<Ctx<'a>, ReaderError> {
+        let views = load_views(view, &opts.captures, &opts.cameras)?;
+        let folds = folds(&views);
+        let n_folds = folds.iter().max().map_or(1, |m| m + 1);
+        Ok(Ctx {
+            geometry,
+            scene: Scene::new(geometry),
+            light: campaign_light(view)?,
+            views,
+            folds,
+            n_folds,
+            supersample: opts.supersample.max(1),
+            markers: markers::survey_markers(view)?,
+        })
+    }
+
+    /// Per view, the pixels in cast shadow of the campaign light (as [`shadows::shadow_pixels`])
+    /// when the scene is seen through `model`'s geometry: where [`Metrics::shadow_rms_dn`] is
+    /// measured.
+    pub(crate) fn shadow_pixels(&self, model: &SensorModel) -> Vec<Vec<bool>> {
+        let mut lit = model.clone();
+        lit.effects.retain(|e| e.name() != "shadows");
+        let mut shadowed = lit.clone();
+        shadowed.effects.push(Effect::Shadows {
+            azimuth_deg: self.light.azimuth_deg,
+            elevation_deg: self.light.elevation_deg,
+        });
+        let (lit, shadowed) = (
+            self.predict_sampled(&lit, 1),
+            self.predict_sampled(&shadowed, 1),
+        );
+        self.views
+            .iter()
+            .zip(lit.iter().zip(&shadowed))
+            .map(|(v, (l, s))| shadows::shadow_pixels(&l.dn, &s.dn, &l.mask, v.width, v.height))
+            .collect()
+    }
+
+    /// Measures `preds` (made with `model`) against the real views; with a `texture-lowpass`
+    /// in `model`, the spectrum is taken on renders with its texture detail.
+    pub(crate) fn measure(
+        &self,
+        preds: &[Prediction],
+        model: &SensorModel,
+        shadow: &[Vec<bool>],
+    ) -> Metrics {
+        let detailed_geometry = model.detailed(self.geometry);
+        let detailed = detailed_geometry.as_ref().map(|g| {
+            let scene = Scene::new(g);
+            self.views
+                .iter()
+                .map(|v| predict(&scene, &self.light, v, model, self.supersample).radiance)
+                .collect::<Vec<_>>()
+        });
+        let inputs = match self.geometry {
+            Geometry::Heightfield { grid, albedo } => {
+                Some(TextureInputs::new(self, grid, albedo, model))
+            }
+            _ => None,
+        };
+        let shading: Option<Vec<&[f32]>> = inputs
+            .as_ref()
+            .map(|t| t.flat.iter().map(|p| p.radiance.as_slice()).collect());
+        let align_mask = geometric_masks(self, model, preds);
+        let mut m = measure::measure(
+            &self.views,
+            preds,
+            model,
+            shadow,
+            detailed.as_deref(),
+            shading.as_deref(),
+            &align_mask,
+        );
+        if let (Geometry::Heightfield { albedo, .. }, Some(inputs)) = (self.geometry, &inputs) {
+            let texture = match &detailed_geometry {
+                Some(Geometry::Heightfield { albedo, .. }) => albedo,
+                _ => albedo,
+            };
+            m.texture_band_log_ratio = texture::band_power_log_ratio(&inputs.views(self), texture);
+        }
+        m
+    }
+
+    /// The name of each fold: its capture (its camera, when the views hold one capture).
+    pub(crate) fn fold_names(&self) -> Vec<String> {
+        (0..self.n_folds)
+            .map(|k| {
+                let v = self.views.iter().zip(&self.folds).find(|(_, f)| **f == k);
+                v.map_or_else(String::new, |(v, _)| {
+                    if self.n_folds >= 2 && self.views.iter().any(|w| w.capture != v.capture) {
+                        v.capture.clone()
+                    } else {
+                        v.camera.clone()
+                    }
+                })
+            })
+            .collect()
+    }
+
+    pub(crate) fn predict_all(&self, model: &SensorModel) -> Vec<Prediction> {
+        self.predict_sampled(model, self.supersample)
+    }
+
+    pub(crate) fn predict_sampled(&self, model: &SensorModel, supersample: u32) -> Vec<Prediction> {
+        self.views
+            .iter()
+            .map(|v| predict(&self.scene, &self.light, v, model, supersample))
+            .collect()
+    }
+}
+
+pub(crate) fn has(model: &SensorModel, name: &str) -> bool {
+    model.effects.iter().any(|e| e.name() == name)
+}
+
+/// Adds `e` to `model`: an effect already present is replaced by `e`.
+pub(crate) fn upsert(model: &mut SensorModel, e: Effect) {
+    match model.effects.iter_mut().find(|x| x.name() == e.name()) {
+        Some(x) => *x = e,
+        None => model.effects.push(e),
+    }
+}
+
+pub(crate) fn named(
+    e: &Effect,
+    std_err: BTreeMap<String, f64>,
+    share: f64,
+    stage: &str,
+    evidence: String,
+) -> Named {
+    Named {
+        effect: e.name().to_string(),
+        params: param_map(e),
+        std_err,
+        explained_fraction: share,
+        stage: stage.to_string(),
+        evidence,
+        per_capture: Vec::new(),
+    }
+}
+
+pub(crate) fn scored(cands: &[Candidate]) -> Vec<ScoredCandidate> {
+    cands
+        .iter()
+        .map(|c| ScoredCandidate {
+            effects: c.effects.iter().map(|s| s.to_string()).collect(),
+            k: c.k,
+            cv_error: c.cv_error,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jackknife_spreads_fold_fits_and_never_lowers_the_formal_error() {
+        // Two folds: θ = 1 and 2 → sqrt(1/2 · (0.25 + 0.25)) = 0.5; a constant parameter → 0.
+        let j = jackknife(2, &|f| vec![1.0 + f as f64, 7.0]).unwrap_or_default();
+        assert!((j[0] - 0.5).abs() < 1e-12 && j[1] == 0.0, "{j:?}");
+        // Three folds 0, 0, 3: mean 1, Σ = 6, sqrt(2/3 · 6) = 2.
+        let j = jackknife(3, &|f| vec![if f == 2 { 3.0 } else { 0.0 }]).unwrap_or_default();
+        assert!((j[0] - 2.0).abs() < 1e-12, "{j:?}");
+        assert!(jackknife(1, &|_| vec![1.0]).is_none());
+        assert_eq!(honest_std_err([0.1, 0.7], Some(vec![0.5, 0.2])), [0.5, 0.7]);
+        assert_eq!(honest_std_err([0.1], None), [0.1]);
+    }
+}

@@ -1,0 +1,146 @@
+//! What the gap workflow recovers on the corpus' campaigns, and where it stops: the figures behind
+//! the tolerances the `gap_hidden` tests assert, the causes found for what is left, and the
+//! remedies tried that did not help (so they are not tried again). This module holds no code.
+//!
+//! # Known limits
+//!
+//! `texture-lowpass` cannot bring back the real pattern (it is not in the entry; see
+//! [`texture`](super::texture)): once added, sample renders carry procedural detail of the missing
+//! spectrum ([`crate::sensor::detail`]), which has zero mean, so the photometric RMS (against the
+//! expected render) stays and the texture's band power against the real albedo's
+//! ([`super::Metrics::texture_band_log_ratio`], the run's headline [`Figure`](super::Figure) then)
+//! is what shrinks — on mini seeds 101 and 102 from −0.790 and −0.737 to −0.655 and −0.471, where
+//! the same campaigns with a faithful texture read −0.691 and −0.618 (the detail's spectrum,
+//! extrapolated from where the low-passed texture still shows its signal, overshoots on seed 102);
+//! and the smallest level or contrast change the render names (an exposure; a response curve the
+//! noise cannot decide) is about 5 DN RMS, because renders of laser DEMs are themselves a little
+//! darker and flatter than the real images (a radial falloff cannot mimic that, so vignetting is
+//! named from 3 DN²). Over a terrain's narrow intensity range a mild response curve and an exposure
+//! look alike to the render: a curve of 1.18 is an offset of +0.06 within 2 DN, and exposures that
+//! brighten with little offset (gains 1.11–1.14, mini seeds 106, 110, 112) had a lower held-out
+//! error as curves of 1.10–1.24 from mini's two captures. The repeat frames' noise over the dark
+//! background tells them apart whatever the entry ([`response`](super::response)): on mini seeds
+//! 101–112 every hidden curve (1.18–2.39, and 1.10 and 1.06 set on seeds 101–103) is named within
+//! 0.008 of the truth, every exposure whose black level the background shows reads a linear
+//! response with its black level within 0.3 DN (its offset is then held there, and its gain, fitted
+//! to the render, comes out within 0.8 %: seeds 103, 105, 106, 108, 110, 112), and nothing hidden
+//! reads linear. The witness is silent without two frames per pose or a dark background, and
+//! undecided when an exposure clips the background to 0 (offsets under about −3 DN: seeds 101, 104,
+//! 107, 109, 111) or lifts it so far that the background's noise no longer shows the curve (+10.5
+//! DN, seed 102); then the render decides as before, the dark background bounding an exposure's
+//! black level from above ([`super::photometry::Samples::black_limit`]: an offset that lifts it is
+//! a response curve in disguise), and the gains come out 3–8 % off.
+//!
+//! # How close the fitted parameters come
+//!
+//! Parameters are as good as the views are many and as wide as the scene they show. From mini's two
+//! captures (four views) a vignetting strength comes out within 5 % alone and next to a response
+//! curve or a pose bias (seeds 101–103: −0.4, −1.0, −4.3 %; next to a gamma, held at the curve the
+//! noise shows, with a free gain, seeds 101–105: −0.5, −1.7, −3.8, +0.1, −1.0 %, where the curve
+//! fitted to the render alone left +1.7 to +6.0 %; it was +8, −9, −23 % and +20 % before the stereo
+//! overlap entered the fit), a distortion's displacement at 0.7 of the radius comes out −5.1 and
+//! −1.6 % off on the test's seeds (101, 102: dk1 −0.0447 for −0.0466, 0.0391 for 0.0385, −4.1 and
+//! +1.5 %, both radial terms fitted to the render and the stereo pairs together); over seeds
+//! 101–105 dk1 −4.1, +1.6, +11.4, +15.8 and −1.1 % (seed 104: dk2 0.0017 for 0.0075 — the two terms
+//! still trade off). With the laser texture's earlier principal-component incidence normal
+//! (`merge.clean` v3) seeds 101–107 read −5.8, −1.5, +10.1, +9.0, 0.0, −1.0 and −10.3 % in the
+//! displacement (dk1 −5.1, +1.7, +10.5, +15.4, −1.1, +12.3, −16.3 %). With one term it was −8.1,
+//! −2.3, +12.8, +10.2, +14.7, −2.2 and +8.7 % (a hidden dk2 of 0.0075–0.0138 went into dk1; dk1 17
+//! % off on average). From the render's samples alone it was −11.8, −10.7, +34.0, +9.2, +2.1, +24.7
+//! and +5.6 %: the laser entry's render residual is lower at that fit than at the truth on every
+//! seed checked (101, 102, 103, 106), its texture pulls; the stereo pairs
+//! ([`super::geometry::stereo_pairs`]) do not see the texture. Nor is the entry's registration what
+//! is left: the laser block of these campaigns is tilted by 0.13–0.19° against the ground frame (5
+//! markers over 2 m), yet with that error removed by the truth (render samples alone) the test's
+//! seeds still read −12 and −4 % in dk1, and the pose bias came out no closer. And a pose bias's
+//! rotation and translation trade off (pitch against the vertical translation: seed 102, 0.46° for
+//! 0.03° with 14 mm of y) while the displacement they make together at 1.5 m is within 3.2 and 6.7
+//! mm (seeds 101, 102), over seeds 101–107 (principal-component incidence normal) within 2.4–6.7 mm
+//! (mean 4.1), the roll within 0.03–0.15° (mean 0.084°), the rotation within 0.09–0.73° (mean
+//! 0.33°). With the render's samples alone (the pairs out of a pose bias's fit) the same seeds read
+//! 2.7–5.5 mm (mean 3.9), roll 0.02–0.30° (mean 0.116°), rotation 0.03–1.27° (mean 0.42°): the
+//! pairs see the roll (it moves the right camera vertically about the left) and not a motion common
+//! to both cameras; the test `gap_hidden` asserts these measured tolerances. Six capture locations
+//! (`corpus generate --captures 6`) bring the displacement within 1.9 and 2.0 mm and the roll
+//! within 0.070° and 0.066° (seeds 101, 102; asserted too) and narrow the trade-off without
+//! removing it (seed 101: within 0.091° and 1.1 mm on every axis; seed 102: pitch 0.22° off with 6
+//! mm of y): the terrain fills only the lower part of a mini view, where a pitch and a vertical
+//! translation look alike at the terrain's distance. Where along that valley the fit stops is set
+//! by the entry, not by the optimiser or the pairs' geometry. Given the campaign's true terrain
+//! instead ([`run_on`](super::run_on); `gap_hidden` asserts it) the same fit recovers a pose bias
+//! within 0.03° and 0.3 mm on every axis from two locations (seeds 101–104) and a distortion's
+//! `dk1` within 3 % (seeds 101–104: −2.7, −0.3, 0.0, +1.1 %; the laser entry reads seeds 103, 104
+//! +11 and +16 %). With nothing hidden (six locations, seed 103) the forced pose-bias fit (render
+//! samples and pairs) reads 0.58° of pitch with 17 mm of y on the laser entry, 0.17° and 5 mm with
+//! the laser heights under the true albedo, 0.17° and 5 mm with the true heights under the laser
+//! texture, and 0.005° and 0.1 mm with both true. Of the entry's heights it is their border that
+//! pulls, not their noise or resolution: 5 and 10 cm cut off the laser heightfield's edges took the
+//! same fit to 0.41° and 0.23° (0.07° under the true albedo), while the true heights with 2 mm of
+//! noise, blocked to 12 mm cells, tilted by the laser block's 0.09° or raised 2 mm stayed within
+//! 0.04° (a raise comes out as the translation it is). The stereo pairs alone, through the laser
+//! heights, go to 0.57° with 20 mm of y, the same on `laser/0.02` and `sfm/0.02`; through the true
+//! heights to 0.05°. A hidden bias on the laser entry comes out shifted the same way (seeds
+//! 101–104, six locations: pitch −0.09, +0.22, +0.50, +0.06° off, y 0.7, 6.0, 15.3, 4.0 mm), and
+//! six locations do not settle `dk1` against `dk2` there either (seeds 101–107: +0.2, −16.1, +4.9,
+//! −2.5, +1.7, +7.1, −9.5 %). The largest single pull was the survey markers (each capture looks at
+//! one; see [`markers`](super::markers)): on seed 103 the 0.7 % of render samples within 4 cm of a
+//! marker and the 2.6 % of pairs within 8 cm held all of the fit's preference for its solution over
+//! the truth. Kept out, the same seeds read pitch −0.09, +0.14, +0.37, +0.01° off and y 1.7, 2.9,
+//! 9.6, 0.7 mm (mean error over the six axes and four seeds 0.12° → 0.09° and 3.6 → 2.7 mm); a
+//! distortion from two locations (seeds 101–107) `dk1` +3.9, −6.0, +8.4, +0.8, +8.5, +3.6, −22.9 %
+//! (fitted / true − 1; with the markers: −4.1, +1.6, +11.4, +15.8, −1.1 % on 101–105). What still
+//! pulls on seed 103 are the render's strongest band-pass features (1.8 % of the samples beyond 3
+//! standard deviations) and the ground 5–20 cm inside the heightfield's border; squashing the
+//! band-pass (`2·tanh(x/2)`), a Huber or Tukey weight from the fit's residuals, leaving out samples
+//! next to the render's depth discontinuities, or leaving out the entry's small bumps (cells 4 mm
+//! above the DEM smoothed at 2 cm, where most of the remaining pull on seed 103 sat: dark pebbles)
+//! moved the seeds' errors by ±0.1° either way without shrinking them. It is the texture, not the
+//! heights: under the true albedo the entry's own heights give a hidden bias within 0.10° and 2.9
+//! mm on every axis from two locations (seeds 101–104; `gap_hidden` asserts 101, 102) and from six.
+//! The texture's error against the true albedo (averaged over its 1 cm cells) sits on the relief —
+//! RMS 0.14–0.20 on cells 2 mm or more off their 7 cm mean, 0.05 on the flat — where the laser's
+//! reflectance keeps the shading of sub-cell facets toward each scanner (the incidence normal is
+//! the 6 cm plane's). From six locations seed 103's pitch stays 0.36–0.38° off with the scan's
+//! range noise off or its step 2.5 times finer (0.26° with both); in place of the texture, the true
+//! albedo averaged over its cells reads 0.09°, and times such shading, blurred 8 mm, 0.16°.
+//! Removing the relief from the masks instead loses the alignment's information (pitch up to
+//! 0.58°); weighting the stereo pairs three times more moves the error into the vertical
+//! translation (−4 to −7 mm). Nor is it the incidence correction's scale: with its normal window at
+//! 12 cm instead of 6 seed 103's pitch reads 0.39° off, with no correction at all 0.43° (and an
+//! exposure is named), and with a 3 cm window on a scan 2.5 times finer 0.52°. Leaving out what the
+//! laser DEM interpolated (cells under TIN triangles longer than 2.5 times the median, and filled
+//! holes, with two cells' margin: 2–4 % of a view's terrain pixels, most at its far end) took seed
+//! 103's pitch from six locations to 0.17° and 5.9 mm, and the mean error over seeds 101–104 from
+//! two locations from 0.154° and 4.5 mm to 0.131° and 3.6 mm, but seed 101's `dk1` went from 3.9 %
+//! to 15.2 % off and seed 106's pose bias was no longer named: the far terrain holds the radial
+//! lever arm and much of a pose's signal (without the margin, or with four cells, the same trade).
+//! Nor is the reconstruction's entry closer: `sfm/0.02` (2 cm heights fitted to the SfM mesh, its
+//! vertex colours the albedo blurred by 1 cm, without the laser's shading) gave from two locations
+//! on seeds 101–104 a pose bias within the targets on 2, 2, 1 of four rotation axes and 3, 1, 3
+//! translation axes, `dk1` within 5 % once (one distortion not named), and `texture-lowpass` named
+//! next to a distortion, a pose bias and nothing hidden (its colours are blurrier than the laser's
+//! 1 cm texture).
+//!
+//! # The estec preset
+//!
+//! From estec's eight captures a hidden vignetting of 0.4756 came out 0.4775 ± 0.0008 and a pose
+//! bias within 0.041° and 0.4 mm per axis (seed 2; 0.049° and 0.8 mm with the survey markers kept
+//! out; 0.026° and 1.1 mm from the render's samples alone, before the rig-frame bias and the
+//! pairs), a hidden distortion (dk1 −0.0417, dk2 0.0056) came out dk1 −0.0397 ± 0.0004, dk2 0.0034
+//! ± 0.0004 (−5.0 % in dk1, displacement at 0.7 of the radius −2.6 %; stereo residual 0.187 →
+//! 0.017; with one radial term −0.0370, −5.0 % in the displacement), and nothing hidden named
+//! nothing. A hidden texture low-pass of 27.5 mm came out 24.1 ± 4.1 mm, alone; before the
+//! rig-frame bias and the stereo pairs a false pose bias (28 mm along the optical axis) was named
+//! next to it (the band-pass alignment, with the texture low-passed, sees mostly relief shading).
+//! It is no longer chosen because its held-out drop, 0.034, is under the geometric floor (0.04) —
+//! not because the pairs rejected it.
+//!
+//! # A lone camera
+//!
+//! Through one camera alone (`gap --cameras navcam_left`, as for a rover with one NavCam: no stereo
+//! pairs, the radial terms chosen on the held-out render residual, the camera its own rig frame)
+//! seeds 101, 102 read a distortion's displacement −7.0 and −16.2 % off (dk1 −8.1 and −14.7 %, one
+//! term chosen), a pose bias's displacement 3.1 and 6.3 mm off, and nothing hidden named nothing
+//! (asserted by `gap_hidden`). Over seeds 101–107 every case is named right, but without the pairs
+//! the texture pulls the distortion again (displacement −15.0 to +39.4 % off) and the roll is
+//! looser (up to 0.27° off; displacement 2.6–6.4 mm).
