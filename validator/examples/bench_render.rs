@@ -1,7 +1,9 @@
 //! Renderer benchmark (no criterion): renders a 1280 x 1024 navcam view of a rough 8.7 m
 //! terrain at the grid resolutions the compiler and corpus use, and prints ms per view and
-//! triangles per second. `--export DIR` also writes the 580 x 574 heightfield, the pose and
-//! the rendered depth for the Open3D peer check (`tools/peers/render_open3d.py`).
+//! triangles per second, and a shadowed view relit from its kept camera-ray hits against the
+//! full render (`Scene::relight`, what the gap search over a light's direction does).
+//! `--export DIR` also writes the 580 x 574 heightfield, the pose and the rendered depth for
+//! the Open3D peer check (`tools/peers/render_open3d.py`).
 //!
 //! Run: `cargo run -p regolith-validator --release --example bench_render [-- --export DIR]`
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -122,21 +124,28 @@ fn cpu_ms() -> f64 {
     (f.get(11).unwrap_or(&0.0) + f.get(12).unwrap_or(&0.0)) * 10.0
 }
 
+/// The campaign light of every benchmark render.
+const LIGHT: Light = Light {
+    azimuth_deg: 135.0,
+    elevation_deg: 35.0,
+    ambient: 0.2,
+};
+
 /// Median wall time per view, the first view's wall time (it builds the camera's ray table),
 /// CPU time per view, and the last image.
 fn time_views(scene: &Scene<'_>, opts: &RenderOptions, runs: usize) -> (f64, f64, f64, Rendered) {
-    let light = Light {
-        azimuth_deg: 135.0,
-        elevation_deg: 35.0,
-        ambient: 0.2,
-    };
+    time_runs(runs, || scene.render(&LIGHT, &view(), opts))
+}
+
+/// [`time_views`] of any way of making the view.
+fn time_runs(runs: usize, make: impl Fn() -> Rendered) -> (f64, f64, f64, Rendered) {
     let cpu0 = cpu_ms();
     let t = Instant::now();
-    let mut last = scene.render(&light, &view(), opts);
+    let mut last = make();
     let mut times = vec![t.elapsed().as_secs_f64() * 1e3];
     for _ in 1..runs {
         let t = Instant::now();
-        last = scene.render(&light, &view(), opts);
+        last = make();
         times.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let cpu = (cpu_ms() - cpu0) / times.len() as f64;
@@ -157,6 +166,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
     let scene = Scene::new(g);
     let build_ms = t.elapsed().as_secs_f64() * 1e3;
     let threads = rayon::current_num_threads();
+    let mut shadowed_ms = 0.0;
     for (name, opts) in [
         (
             "plain",
@@ -187,6 +197,9 @@ fn report(label: &str, g: &Geometry, runs: usize) {
         ),
     ] {
         let (ms, first, cpu, r) = time_views(&scene, &opts, runs);
+        if opts.shadows {
+            shadowed_ms = ms;
+        }
         let seen = r.mask.iter().filter(|&&m| m == 255).count() as f64 / r.mask.len() as f64;
         println!(
             "{label:<28} {name:<8} build {build_ms:7.1} ms  wall {ms:7.1} ms/view (first {first:6.1})  cpu {cpu:7.1} ms/view  \
@@ -196,6 +209,20 @@ fn report(label: &str, g: &Geometry, runs: usize) {
             seen * 100.0
         );
     }
+    // A search over the light's direction: the camera rays traced once, then each light only
+    // shades their hits and casts the shadow rays (the same bytes as the full render).
+    let opts = RenderOptions {
+        distort: true,
+        shadows: true,
+        supersample: 1,
+        filter_textures: true,
+    };
+    let hits = scene.primary_hits(&view(), &opts);
+    let (ms, _, cpu, _) = time_runs(runs, || scene.relight(&hits, &LIGHT, true));
+    println!(
+        "{label:<28} relit    wall {ms:7.1} ms/view  cpu {cpu:7.1} ms/view  ({:.2} of the shadowed render: the camera rays traced once)",
+        ms / shadowed_ms
+    );
 }
 
 fn main() -> std::io::Result<()> {
@@ -253,11 +280,7 @@ fn export_peer(dir: &std::path::Path, g: &Geometry) -> std::io::Result<()> {
     };
     std::fs::create_dir_all(dir)?;
     let v = view();
-    let light = Light {
-        azimuth_deg: 135.0,
-        elevation_deg: 35.0,
-        ambient: 0.2,
-    };
+    let light = LIGHT;
     let r = Scene::new(g).render(
         &light,
         &v,

@@ -695,3 +695,53 @@ fn a_distant_fine_texture_is_filtered_not_aliased() {
         "mesh: mean {mean} std {std}"
     );
 }
+
+/// A view's camera rays traced once and shaded under other lights give the bytes of full
+/// renders under those lights — heightfield and mesh, with and without cast shadows, at one and
+/// two samples per axis (two adds the centre ray) — while the lights' shadows do differ.
+#[test]
+fn relit_hits_give_the_bytes_of_a_render() {
+    let hf = Geometry::Heightfield {
+        grid: box_grid(),
+        albedo: albedo(201, 201, 0.02, |x, y| {
+            0.4 + 0.2 * (x * 9.0).sin() * (y * 7.0).cos()
+        }),
+    };
+    let mesh = Geometry::Mesh(as_mesh(&box_grid(), 0.4));
+    let view = View::look_at(real_camera(), [0.3, -3.8, 1.5], [2.0, -2.0, 0.1]);
+    let bits = |r: &Rendered| -> Vec<u32> {
+        r.radiance
+            .iter()
+            .chain(&r.depth)
+            .map(|v| v.to_bits())
+            .collect()
+    };
+    for g in [&hf, &mesh] {
+        let scene = Scene::new(g);
+        for n in [1, 2] {
+            let opts = |shadows| RenderOptions {
+                distort: true,
+                shadows,
+                supersample: n,
+                filter_textures: true,
+            };
+            let hits = scene.primary_hits(&view, &opts(false));
+            let mut seen = Vec::new();
+            for (l, shadows) in [
+                (light(200.0, 35.0, 0.2), true),
+                (light(120.0, 20.0, 0.2), true),
+                (light(120.0, 20.0, 0.2), false),
+            ] {
+                let relit = scene.relight(&hits, &l, shadows);
+                let full = scene.render(&l, &view, &opts(shadows));
+                assert_eq!(bits(&relit), bits(&full), "n = {n}, shadows {shadows}");
+                assert_eq!(relit.mask, full.mask);
+                seen.push(bits(&relit));
+            }
+            assert!(
+                seen[0] != seen[1] && seen[1] != seen[2],
+                "the lights must show"
+            );
+        }
+    }
+}

@@ -14,8 +14,8 @@ use regolith_format::camera_model::CameraModel;
 use regolith_reader::captures::ImageKind;
 use regolith_reader::{ReaderError, ReleaseView};
 
-use crate::render::{Light, Scene};
-use crate::sensor::{Placement, SensorModel};
+use crate::render::{Light, PrimaryHits, Scene};
+use crate::sensor::{Placement, SensorModel, SensorRender};
 use crate::validate::grey;
 
 /// One (capture, camera) pair with its real frames.
@@ -182,13 +182,30 @@ pub fn predict(
     model: &SensorModel,
     supersample: u32,
 ) -> Prediction {
-    let r = model.render(scene, light, &v.camera_model, &v.at, supersample, None);
-    Prediction {
-        mask: r.rendered.mask.iter().map(|&m| m == 255).collect(),
-        radiance: r.rendered.radiance,
-        dn: r.dn,
-        depth: r.rendered.depth,
-        camera: r.camera,
+    Prediction::from(model.render(scene, light, &v.camera_model, &v.at, supersample, None))
+}
+
+/// [`predict`] at supersample 1 from the view's camera rays' first `hits`, traced under a
+/// model of the same geometry as `model` ([`SensorModel::relight`]): the same prediction.
+pub fn predict_relit(
+    scene: &Scene<'_>,
+    light: &Light,
+    v: &GapView,
+    model: &SensorModel,
+    hits: &PrimaryHits,
+) -> Prediction {
+    Prediction::from(model.relight(scene, hits, light, &v.camera_model, None))
+}
+
+impl From<SensorRender> for Prediction {
+    fn from(r: SensorRender) -> Prediction {
+        Prediction {
+            mask: r.rendered.mask.iter().map(|&m| m == 255).collect(),
+            radiance: r.rendered.radiance,
+            dn: r.dn,
+            depth: r.rendered.depth,
+            camera: r.camera,
+        }
     }
 }
 

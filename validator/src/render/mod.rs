@@ -22,6 +22,10 @@
 //! * **Shading** is Lambertian with an ambient share (see [`shading`]):
 //!   `radiance = albedo * (ambient + (1 - ambient) * max(0, n·l) * visible)`, where `visible`
 //!   is 0 when a shadow ray toward the light hits the terrain (only with `shadows: true`).
+//! * **Relighting:** a view's camera rays can be traced once ([`Scene::primary_hits`]) and
+//!   their first hits shaded under other lights ([`Scene::relight`]), byte for byte a render
+//!   under each: the search for a light's direction renders the same views under dozens of
+//!   lights, and the camera rays are most of a render's work.
 //! * **Determinism:** rows are rendered in parallel with rayon, but every pixel is a pure
 //!   function of its coordinates (no reductions across pixels), so the bytes do not depend on
 //!   the number of threads.
@@ -36,6 +40,7 @@ pub mod shading;
 
 /// The renderer's own inverse of the lens distortion, for code that back-projects its pixels.
 pub(crate) use raster::unproject;
+pub use raster::PrimaryHits;
 
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
@@ -299,6 +304,18 @@ impl<'a> Scene<'a> {
     /// Renders one view.
     pub fn render(&self, light: &Light, view: &View, opts: &RenderOptions) -> Rendered {
         raster::render_scene(self, light, view, opts)
+    }
+
+    /// The first hits of `view`'s camera rays (`opts.shadows` aside, the options of a render),
+    /// to be shaded under several lights by [`Scene::relight`].
+    pub fn primary_hits(&self, view: &View, opts: &RenderOptions) -> PrimaryHits {
+        raster::primary_hits(self, view, opts)
+    }
+
+    /// `hits` (traced in this scene) shaded under `light`, with cast shadows when `shadows`:
+    /// the same bytes as [`Scene::render`] of their view.
+    pub fn relight(&self, hits: &PrimaryHits, light: &Light, shadows: bool) -> Rendered {
+        raster::relight(self, hits, light, shadows)
     }
 }
 

@@ -22,9 +22,49 @@ const HF_SHADOW_EPS_CELLS: f64 = 1e-3;
 /// Shadow-ray start offset along the normal: meshes, as a share of the bounding-box diagonal.
 const MESH_SHADOW_EPS: f64 = 1e-6;
 
-struct Sample {
-    radiance: f64,
-    depth: Option<f64>,
+/// A camera ray's first hit: what shading it under any light needs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SurfaceSample {
+    hit: Hit,
+    albedo: f32,
+}
+
+/// The first hits of every camera ray of one view (row-major, every sample of a pixel in turn,
+/// and its centre ray after them when the samples per axis are even; `None` where a ray sees
+/// nothing): the view's geometry, traced once by [`super::Scene::primary_hits`], to be shaded
+/// under several lights by [`super::Scene::relight`].
+///
+/// Why: a search over the light's direction renders the same view under many lights, and the
+/// camera rays — which do not depend on the light — are most of a render's work. Shading kept
+/// hits gives the bytes a full render gives.
+#[derive(Debug, Clone)]
+pub struct PrimaryHits {
+    width: usize,
+    height: usize,
+    supersample: u32,
+    hits: Vec<Option<SurfaceSample>>,
+}
+
+/// The first hit of every camera ray of `view` (see [`PrimaryHits`]).
+pub(crate) fn primary_hits(scene: &Scene<'_>, view: &View, opts: &RenderOptions) -> PrimaryHits {
+    let rays = CameraRays::new(scene, view, opts);
+    let per_pixel = samples_per_pixel(rays.n);
+    let rows: Vec<Vec<Option<SurfaceSample>>> = (0..rays.h)
+        .into_par_iter()
+        .map(|r| {
+            let mut row = Vec::with_capacity(rays.w * per_pixel);
+            for c in 0..rays.w {
+                row.extend((0..per_pixel).map(|k| rays.first_hit(scene, c, r, k)));
+            }
+            row
+        })
+        .collect();
+    PrimaryHits {
+        width: rays.w,
+        height: rays.h,
+        supersample: rays.n,
+        hits: rows.concat(),
+    }
 }
 
 pub(crate) fn render_scene(
@@ -33,53 +73,135 @@ pub(crate) fn render_scene(
     view: &View,
     opts: &RenderOptions,
 ) -> Rendered {
-    let cam = &view.camera;
-    let (w, h) = (cam.width as usize, cam.height as usize);
-    let n = opts.supersample.max(1);
-    let rot = view.ground_from_camera.rotation_matrix();
-    let centre = view.ground_from_camera.translation_m;
-    let to_light = light_direction(light);
-    let ambient = light.ambient;
+    let rays = CameraRays::new(scene, view, opts);
+    let shader = Shader::new(scene, light, opts.shadows);
+    assemble(
+        rays.w,
+        rays.h,
+        rays.n,
+        |c, r, k| rays.first_hit(scene, c, r, k),
+        |s| shader.shade(s),
+    )
+}
 
-    let per_pixel = samples_per_pixel(n);
-    let odd_centre = (n % 2 == 1).then_some(((n / 2) * n + n / 2) as usize);
-    let table = opts.distort.then(|| scene.ray_table(cam, n));
-    let pinhole = |u: f64, v: f64| -> (f64, f64) {
-        let y = (v - cam.cy) / cam.fy;
-        ((u - cam.cx - cam.skew * y) / cam.fx, y)
-    };
-    // Normalised undistorted coordinates of sample `k` (see `sample_offset`) of pixel (c, r).
-    let ray_xy = |c: usize, r: usize, k: usize| -> (f64, f64) {
-        match &table {
+/// `hits` shaded under `light` (cast shadows with `shadows`): byte for byte the render of the
+/// view they were traced from.
+pub(crate) fn relight(
+    scene: &Scene<'_>,
+    hits: &PrimaryHits,
+    light: &Light,
+    shadows: bool,
+) -> Rendered {
+    let shader = Shader::new(scene, light, shadows);
+    let (w, per_pixel) = (hits.width, samples_per_pixel(hits.supersample));
+    assemble(
+        w,
+        hits.height,
+        hits.supersample,
+        |c, r, k| {
+            hits.hits
+                .get((r * w + c) * per_pixel + k)
+                .copied()
+                .flatten()
+        },
+        |s| shader.shade(s),
+    )
+}
+
+/// The camera rays of one view: their directions in the ground frame and where they first
+/// hit the scene.
+struct CameraRays<'c> {
+    w: usize,
+    h: usize,
+    n: u32,
+    cam: &'c CameraModel,
+    rot: [[f64; 3]; 3],
+    centre: [f64; 3],
+    table: Option<std::sync::Arc<RayTable>>,
+    /// Neighbouring samples' spacing in normalised image coordinates (texture filtering).
+    spread: f64,
+}
+
+impl<'c> CameraRays<'c> {
+    fn new(scene: &Scene<'_>, view: &'c View, opts: &RenderOptions) -> CameraRays<'c> {
+        let cam = &view.camera;
+        let n = opts.supersample.max(1);
+        CameraRays {
+            w: cam.width as usize,
+            h: cam.height as usize,
+            n,
+            cam,
+            rot: view.ground_from_camera.rotation_matrix(),
+            centre: view.ground_from_camera.translation_m,
+            table: opts.distort.then(|| scene.ray_table(cam, n)),
+            spread: if opts.filter_textures {
+                2.0 / ((cam.fx.abs() + cam.fy.abs()) * f64::from(n))
+            } else {
+                0.0
+            },
+        }
+    }
+
+    /// Normalised undistorted coordinates of sample `k` (see [`sample_offset`]) of pixel
+    /// `(c, r)`.
+    fn xy(&self, c: usize, r: usize, k: usize) -> (f64, f64) {
+        match &self.table {
             Some(t) => {
-                t.xy.get((r * w + c) * per_pixel + k)
+                t.xy.get((r * self.w + c) * samples_per_pixel(self.n) + k)
                     .map_or((f64::NAN, f64::NAN), |p| (p[0], p[1]))
             }
             None => {
-                let (du, dv) = sample_offset(n, k);
-                pinhole(c as f64 + du, r as f64 + dv)
+                let (du, dv) = sample_offset(self.n, k);
+                let (u, v) = (c as f64 + du, r as f64 + dv);
+                let cam = self.cam;
+                let y = (v - cam.cy) / cam.fy;
+                ((u - cam.cx - cam.skew * y) / cam.fx, y)
             }
         }
-    };
+    }
 
-    // Neighbouring samples' spacing in normalised image coordinates (for texture filtering).
-    let spread = if opts.filter_textures {
-        2.0 / ((cam.fx.abs() + cam.fy.abs()) * f64::from(n))
-    } else {
-        0.0
-    };
-    let sample = |x: f64, y: f64| -> Sample {
-        let d = std::array::from_fn(|k| rot[k][0] * x + rot[k][1] * y + rot[k][2]);
-        let Some((hit, albedo, eps)) = trace(scene, centre, d, spread) else {
-            return Sample {
-                radiance: 0.0,
-                depth: None,
-            };
+    /// The first hit of ray `k` of pixel `(c, r)`.
+    fn first_hit(&self, scene: &Scene<'_>, c: usize, r: usize, k: usize) -> Option<SurfaceSample> {
+        let (x, y) = self.xy(c, r, k);
+        let rot = &self.rot;
+        let d = std::array::from_fn(|i| rot[i][0] * x + rot[i][1] * y + rot[i][2]);
+        let (hit, albedo) = trace(scene, self.centre, d, self.spread)?;
+        Some(SurfaceSample { hit, albedo })
+    }
+}
+
+/// Lambertian shading of hits under one light, with or without cast shadows.
+struct Shader<'s, 'a> {
+    scene: &'s Scene<'a>,
+    to_light: [f64; 3],
+    ambient: f64,
+    shadows: bool,
+    /// Shadow-ray start offset along the normal, metres.
+    eps: f64,
+}
+
+impl<'s, 'a> Shader<'s, 'a> {
+    fn new(scene: &'s Scene<'a>, light: &Light, shadows: bool) -> Shader<'s, 'a> {
+        let eps = match &scene.kind {
+            SceneKind::Heightfield { tracer, .. } => tracer.cell_m() * HF_SHADOW_EPS_CELLS,
+            SceneKind::Mesh { tracer } => tracer.extent() * MESH_SHADOW_EPS,
         };
+        Shader {
+            scene,
+            to_light: light_direction(light),
+            ambient: light.ambient,
+            shadows,
+            eps,
+        }
+    }
+
+    /// The radiance of `s`.
+    fn shade(&self, s: &SurfaceSample) -> f64 {
+        let (hit, to_light) = (&s.hit, self.to_light);
         let n_dot_l: f64 = (0..3).map(|k| hit.normal[k] * to_light[k]).sum();
-        let visible = if opts.shadows && n_dot_l > 0.0 {
-            let o = std::array::from_fn(|k| hit.point[k] + hit.normal[k] * eps);
-            if occluded(scene, o, to_light) {
+        let visible = if self.shadows && n_dot_l > 0.0 {
+            let o = std::array::from_fn(|k| hit.point[k] + hit.normal[k] * self.eps);
+            if occluded(self.scene, o, to_light) {
                 0.0
             } else {
                 1.0
@@ -87,12 +209,28 @@ pub(crate) fn render_scene(
         } else {
             1.0
         };
-        Sample {
-            radiance: shade(f64::from(albedo), ambient, hit.normal, to_light, visible),
-            depth: Some(hit.t),
-        }
-    };
+        shade(
+            f64::from(s.albedo),
+            self.ambient,
+            hit.normal,
+            to_light,
+            visible,
+        )
+    }
+}
 
+/// The image of `w x h` pixels at `n x n` samples each: the plain mean of the samples'
+/// radiance (`shade` of each sample's first hit, `hit`; a miss counts as 0), the depth and mask
+/// from the pixel centre's ray. Rows in parallel, each pixel a pure function of its own
+/// samples.
+fn assemble(
+    w: usize,
+    h: usize,
+    n: u32,
+    hit: impl Fn(usize, usize, usize) -> Option<SurfaceSample> + Sync,
+    shade: impl Fn(&SurfaceSample) -> f64 + Sync,
+) -> Rendered {
+    let odd_centre = (n % 2 == 1).then_some(((n / 2) * n + n / 2) as usize);
     let rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)> = (0..h)
         .into_par_iter()
         .map(|r| {
@@ -103,16 +241,14 @@ pub(crate) fn render_scene(
                 let mut sum = 0.0;
                 let mut centre_depth = None;
                 for k in 0..(n * n) as usize {
-                    let (x, y) = ray_xy(c, r, k);
-                    let s = sample(x, y);
-                    sum += s.radiance;
+                    let s = hit(c, r, k);
+                    sum += s.as_ref().map_or(0.0, &shade);
                     if Some(k) == odd_centre {
-                        centre_depth = s.depth;
+                        centre_depth = s.map(|s| s.hit.t);
                     }
                 }
                 if n.is_multiple_of(2) {
-                    let (x, y) = ray_xy(c, r, (n * n) as usize);
-                    centre_depth = sample(x, y).depth;
+                    centre_depth = hit(c, r, (n * n) as usize).map(|s| s.hit.t);
                 }
                 if let (Some(px), Some(d), Some(m)) =
                     (rad.get_mut(c), depth.get_mut(c), mask.get_mut(c))
@@ -200,9 +336,9 @@ impl RayTable {
     }
 }
 
-/// The nearest hit, its albedo (filtered over the footprint of a sample `spread` wide in
-/// normalised image coordinates) and the shadow-ray offset to use there.
-fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hit, f32, f64)> {
+/// The nearest hit and its albedo (filtered over the footprint of a sample `spread` wide in
+/// normalised image coordinates).
+fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hit, f32)> {
     match &scene.kind {
         SceneKind::Heightfield {
             tracer,
@@ -212,12 +348,9 @@ fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hi
             let hit = tracer.trace(o, d, f64::INFINITY)?;
             let foot = footprint_m(hit.t, d, hit.normal, spread);
             let a = sample_albedo_filtered(albedo, mips, hit.point[0], hit.point[1], foot);
-            Some((hit, a, tracer.cell_m() * HF_SHADOW_EPS_CELLS))
+            Some((hit, a))
         }
-        SceneKind::Mesh { tracer } => {
-            let (hit, a) = tracer.trace_albedo(o, d, f64::INFINITY, spread)?;
-            Some((hit, a, tracer.extent() * MESH_SHADOW_EPS))
-        }
+        SceneKind::Mesh { tracer } => tracer.trace_albedo(o, d, f64::INFINITY, spread),
     }
 }
 

@@ -270,19 +270,7 @@ impl SensorModel {
         noise_seed: Option<u64>,
     ) -> SensorRender {
         let camera = self.camera(calibrated);
-        let (opts, shadow_light) = self.render_options(&RenderOptions {
-            distort: true,
-            shadows: false,
-            supersample,
-            filter_textures: true,
-        });
-        let light = match shadow_light {
-            Some(l) => Light {
-                ambient: light.ambient,
-                ..l
-            },
-            None => *light,
-        };
+        let (opts, light) = self.lighting(light, supersample);
         let rendered = scene.render(
             &light,
             &crate::render::View {
@@ -291,6 +279,68 @@ impl SensorModel {
             },
             &opts,
         );
+        self.finish(rendered, camera, calibrated, noise_seed)
+    }
+
+    /// The first hits of the camera rays of [`SensorModel::render`] (the model's distortion
+    /// and pose bias move the camera; its light does not enter), to be shaded under several
+    /// lights by [`SensorModel::relight`].
+    pub fn primary_hits(
+        &self,
+        scene: &crate::render::Scene<'_>,
+        calibrated: &CameraModel,
+        at: &Placement,
+        supersample: u32,
+    ) -> crate::render::PrimaryHits {
+        let (opts, _) = self.render_options(&render_options(supersample));
+        scene.primary_hits(
+            &crate::render::View {
+                camera: self.camera(calibrated),
+                ground_from_camera: self.pose(at),
+            },
+            &opts,
+        )
+    }
+
+    /// [`SensorModel::render`] from `hits`, traced by [`SensorModel::primary_hits`] with a model
+    /// of the same distortion and pose bias as this one: only the light (a `shadows` effect's
+    /// direction) and the image effects may differ. The same bytes as a render.
+    pub fn relight(
+        &self,
+        scene: &crate::render::Scene<'_>,
+        hits: &crate::render::PrimaryHits,
+        light: &Light,
+        calibrated: &CameraModel,
+        noise_seed: Option<u64>,
+    ) -> SensorRender {
+        let (opts, light) = self.lighting(light, 1);
+        let rendered = scene.relight(hits, &light, opts.shadows);
+        self.finish(rendered, self.camera(calibrated), calibrated, noise_seed)
+    }
+
+    /// The render options at `supersample` and the light of a render under `light`: a
+    /// `shadows` effect casts shadows from its direction, with `light`'s ambient share.
+    fn lighting(&self, light: &Light, supersample: u32) -> (RenderOptions, Light) {
+        let (opts, shadow_light) = self.render_options(&render_options(supersample));
+        let light = match shadow_light {
+            Some(l) => Light {
+                ambient: light.ambient,
+                ..l
+            },
+            None => *light,
+        };
+        (opts, light)
+    }
+
+    /// The digital numbers of `rendered` through the image effects (the noise only with a
+    /// `noise_seed`).
+    fn finish(
+        &self,
+        rendered: crate::render::Rendered,
+        camera: CameraModel,
+        calibrated: &CameraModel,
+        noise_seed: Option<u64>,
+    ) -> SensorRender {
         let effects = match noise_seed {
             Some(_) => self.clone(),
             None => SensorModel {
@@ -314,6 +364,16 @@ impl SensorModel {
             dn,
             camera,
         }
+    }
+}
+
+/// The options of a sensor render at `supersample`, before the model's own (shadows).
+fn render_options(supersample: u32) -> RenderOptions {
+    RenderOptions {
+        distort: true,
+        shadows: false,
+        supersample,
+        filter_textures: true,
     }
 }
 

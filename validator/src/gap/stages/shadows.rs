@@ -2,12 +2,13 @@
 //! direction, recorded as the lab surveyed it, is searched first, then the shadows are tested
 //! where the found light casts them.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::sync::{Arc, Mutex};
 
 use crate::gap::context::{has, jackknife, named, upsert, Ctx};
-use crate::gap::views::{predict, GapView, Prediction};
+use crate::gap::views::{predict_relit, GapView, Prediction};
 use crate::gap::{shadows, Named};
-use crate::render::Light;
+use crate::render::{Light, PrimaryHits};
 use crate::sensor::{Effect, SensorModel};
 
 /// The views of a shadow test: the real frame means against `lit` and `shadowed` predictions.
@@ -48,6 +49,20 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
         );
         m
     };
+    // Every view's camera rays, traced once: a light's direction changes only their shading
+    // (the search renders each view under some 30 lights, and a fold's search again).
+    let hits: Vec<PrimaryHits> = ctx
+        .views
+        .iter()
+        .map(|v| model.primary_hits(&ctx.scene, &v.camera_model, &v.at, 1))
+        .collect();
+    // View `i` under `m` and `light`, from its traced rays.
+    let relit = |i: usize, m: &SensorModel, light: &Light| {
+        predict_relit(&ctx.scene, light, &ctx.views[i], m, &hits[i])
+    };
+    let all = |m: &SensorModel, light: &Light| -> Vec<Prediction> {
+        (0..ctx.views.len()).map(|i| relit(i, m, light)).collect()
+    };
     // The model's render under a light from `d`, without cast shadows.
     let lit_at = |d: (f64, f64)| -> Vec<Prediction> {
         let light = Light {
@@ -55,15 +70,12 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
             elevation_deg: d.1,
             ..ctx.light
         };
-        ctx.views
-            .iter()
-            .map(|v| predict(&ctx.scene, &light, v, model, 1))
-            .collect()
+        all(model, &light)
     };
     let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
     let record = (ctx.light.azimuth_deg, ctx.light.elevation_deg);
-    let lit = ctx.predict_sampled(model, 1);
-    let shadowed = ctx.predict_sampled(&with(record), 1);
+    let lit = all(model, &ctx.light);
+    let shadowed = all(&with(record), &ctx.light);
     // A light that casts no shadow the views would see has nothing to test or refine.
     if shadows::evidence(&shadow_views(ctx, &means, &lit, &shadowed)).pixels
         < shadows::MIN_SHADOW_PIXELS
@@ -73,23 +85,25 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
     // The direction first: the campaign records its light as surveyed, a few degrees off, and
     // shadows tested where a wrong light casts them are half missed.
     let near = shadows::near_shadows(&shadow_views(ctx, &means, &lit, &shadowed));
+    // View `i`'s shadowed DN under a light from `d`, kept for the next search that asks: the
+    // search over every view and each fold's search walk the same lattice of directions from
+    // the record, so most directions recur.
+    let seen = DirectionCache::default();
+    let shadowed_dn =
+        |d: (f64, f64), i: usize| seen.get_or_render(d, i, || relit(i, &with(d), &ctx.light).dn);
     // The direction scored on the views `keep` selects, searched from the record.
     let search = |keep: &dyn Fn(usize) -> bool| {
         let idx: Vec<usize> = (0..ctx.views.len()).filter(|&i| keep(i)).collect();
         let near: Vec<&[bool]> = idx.iter().map(|&i| near[i].as_slice()).collect();
         shadows::refine_direction(record, |d| {
-            let m = with(d);
-            let preds: Vec<Prediction> = idx
-                .iter()
-                .map(|&i| predict(&ctx.scene, &ctx.light, &ctx.views[i], &m, 1))
-                .collect();
+            let dn: Vec<Arc<Vec<f32>>> = idx.iter().map(|&i| shadowed_dn(d, i)).collect();
             let v: Vec<shadows::ShadowView<'_>> = idx
                 .iter()
-                .zip(&preds)
-                .map(|(&i, p)| shadows::ShadowView {
+                .zip(&dn)
+                .map(|(&i, dn)| shadows::ShadowView {
                     real: &means[i],
                     lit: &lit[i].dn,
-                    shadowed: &p.dn,
+                    shadowed: dn,
                     mask: &lit[i].mask,
                     w: ctx.views[i].width,
                     h: ctx.views[i].height,
@@ -111,7 +125,7 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
             .unzip();
         shadows::direction_score(&v, &n)
     };
-    let mut refined = (direction != record).then(|| ctx.predict_sampled(&with(direction), 1));
+    let mut refined = (direction != record).then(|| all(&with(direction), &ctx.light));
     if let Some(r) = &refined {
         if !(0..ctx.n_folds).all(|f| fold_score(r, f) < fold_score(&shadowed, f)) {
             direction = record;
@@ -164,4 +178,43 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
             ev.mse_shadowed
         ),
     ));
+}
+
+/// Most bytes of shadowed renders a stage keeps for its searches (beyond it, renders are made
+/// again): about 60 directions of estec's sixteen 1280 x 1024 views.
+const CACHE_BYTES: usize = 6 << 30;
+
+/// Shadowed DN images by (light direction, view), up to [`CACHE_BYTES`].
+#[derive(Default)]
+struct DirectionCache {
+    kept: Mutex<Kept>,
+}
+
+/// The kept images by (azimuth bits, elevation bits, view) and their bytes.
+type Kept = (HashMap<(u64, u64, usize), Arc<Vec<f32>>>, usize);
+
+impl DirectionCache {
+    /// The image of view `i` under a light from `d`: the kept one, or `render`'s.
+    fn get_or_render(
+        &self,
+        d: (f64, f64),
+        i: usize,
+        render: impl FnOnce() -> Vec<f32>,
+    ) -> Arc<Vec<f32>> {
+        // Exact bits: a direction reached along another path (other float roundings) is
+        // rendered again, so a cached image is exactly the one a render would give.
+        let key = (d.0.to_bits(), d.1.to_bits(), i);
+        if let Some(dn) = self.kept.lock().ok().and_then(|k| k.0.get(&key).cloned()) {
+            return dn;
+        }
+        let dn = Arc::new(render());
+        if let Ok(mut k) = self.kept.lock() {
+            let bytes = dn.len() * std::mem::size_of::<f32>();
+            if k.1 + bytes <= CACHE_BYTES {
+                k.1 += bytes;
+                k.0.insert(key, dn.clone());
+            }
+        }
+        dn
+    }
 }
