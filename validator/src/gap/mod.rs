@@ -123,18 +123,20 @@ pub struct Named {
     /// jackknife over captures (the spread of the fits that each leave one capture out); for
     /// `blur`, `texture-lowpass` and the `shadows` direction, which are measured or searched
     /// rather than fitted, the jackknife and the measurement's calibration over mini's
-    /// campaigns in quadrature. The
+    /// campaigns in quadrature, and for `distortion` the larger one and its calibration
+    /// ([`geometry::CALIBRATION_DK`]) in quadrature. The
     /// least-squares one treats every pixel as an independent observation, while neighbouring
     /// residuals are correlated, so alone it is far too small (a fitted dk1 off by 0.003 came
     /// with 0.0001); with two captures the jackknife is itself rough, but of the right size
     /// where the error varies from capture to capture. Where it is shared by every capture (the
     /// laser entry's texture and heights) it is too small: over mini seeds 101–107 twice the
     /// reported error covered the fitted − true error for gamma 14 of 14 times, vignetting 19
-    /// of 21, `dk1` 5 of 7, and per pose-bias axis 6–12 of 14 (`gap_matrix`). A block-robust
+    /// of 21, `dk1` 5 of 7 (7 of 7 with its calibration), and per pose-bias axis 6–12 of 14
+    /// (`gap_matrix`). A block-robust
     /// (sandwich) error over 48 px image blocks came out 5–7 times the least-squares one and
     /// still under the jackknife: the entry's errors are not a random field over the image.
     /// A pose bias's errors therefore also hold, in quadrature, how far the stereo pairs moved
-    /// the render's own fit (see the geometric stage).
+    /// the render's own fit (see the geometric stage; per axis 12–14 of 14 then).
     pub std_err: BTreeMap<String, f64>,
     /// Share of the stage's held-out error the effect explains.
     pub explained_fraction: f64,
