@@ -189,6 +189,15 @@ fn box_grid() -> HeightGrid {
     })
 }
 
+/// The bits of a render's radiance and depth, to compare renders byte for byte.
+fn bits(r: &Rendered) -> Vec<u32> {
+    r.radiance
+        .iter()
+        .chain(&r.depth)
+        .map(|v| v.to_bits())
+        .collect()
+}
+
 fn project(view: &View, p: [f64; 3]) -> [f64; 2] {
     let pc = view.ground_from_camera.inverse().transform_point(p);
     view.camera.project(pc).expect("in front")
@@ -452,13 +461,6 @@ fn output_is_identical_for_one_and_two_threads() {
         pool.install(|| render(&g, &light(60.0, 25.0, 0.2), &view, &opts))
     };
     let (one, two) = (run(1), run(2));
-    let bits = |r: &Rendered| -> Vec<u32> {
-        r.radiance
-            .iter()
-            .chain(&r.depth)
-            .map(|v| v.to_bits())
-            .collect()
-    };
     assert_eq!(bits(&one), bits(&two));
     assert_eq!(one.mask, two.mask);
     assert!(
@@ -490,13 +492,6 @@ fn cached_camera_rays_give_the_bytes_of_a_fresh_scene() {
         shadows: false,
         supersample: n,
         filter_textures: true,
-    };
-    let bits = |r: &Rendered| -> Vec<u32> {
-        r.radiance
-            .iter()
-            .chain(&r.depth)
-            .map(|v| v.to_bits())
-            .collect()
     };
     let fresh = |cam: &CameraModel, n: u32| bits(&Scene::new(&g).render(&l, &view(cam), &opts(n)));
     let scene = Scene::new(&g);
@@ -709,13 +704,6 @@ fn relit_hits_give_the_bytes_of_a_render() {
     };
     let mesh = Geometry::Mesh(as_mesh(&box_grid(), 0.4));
     let view = View::look_at(real_camera(), [0.3, -3.8, 1.5], [2.0, -2.0, 0.1]);
-    let bits = |r: &Rendered| -> Vec<u32> {
-        r.radiance
-            .iter()
-            .chain(&r.depth)
-            .map(|v| v.to_bits())
-            .collect()
-    };
     for g in [&hf, &mesh] {
         let scene = Scene::new(g);
         for n in [1, 2] {
