@@ -3,13 +3,15 @@
 
 use std::collections::BTreeMap;
 
+use crate::gap::blur::EdgeView;
 use crate::gap::context::{has, jackknife, named, upsert, Ctx};
-use crate::gap::views::{GapView, ImagePair};
+use crate::gap::views::GapView;
 use crate::gap::{blur, Named};
 use crate::sensor::{Effect, SensorModel};
 
-/// Smallest PSF σ named as `blur`, px (the catalogue's lower bound: below it the edge widths
-/// of anti-aliasing and geometry dominate).
+/// Smallest excess width of the real edges over the render's (in quadrature) named as `blur`,
+/// px (the catalogue's lower bound: below it the edge widths of anti-aliasing, geometry and
+/// the frames' noise dominate).
 const BLUR_MIN_PX: f64 = 0.3;
 
 /// Blur, measured on the skyline ([`blur`]). Updates `model`.
@@ -22,36 +24,63 @@ pub(crate) fn blur_stage(
     if has(model, "blur") {
         return;
     }
+    if let Some((e, n)) = measure(ctx, model, min_share) {
+        upsert(model, e);
+        out.push(n);
+    }
+}
+
+/// The blur `model` lacks, with its record, if the real edges' excess width is at least
+/// [`BLUR_MIN_PX`] and explains `min_share` of their variance.
+fn measure(ctx: &Ctx<'_>, model: &SensorModel, min_share: f64) -> Option<(Effect, Named)> {
     let preds = ctx.predict_sampled(model, 1);
     let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
-    let views: Vec<ImagePair<'_>> = ctx
+    // Each view's render through the model with a PSF of σ added, on the 8-bit range.
+    let renders: Vec<Box<dyn Fn(f64) -> Vec<f32> + Sync + '_>> = ctx
+        .views
+        .iter()
+        .zip(&preds)
+        .map(|(v, p)| {
+            Box::new(move |sigma_px: f64| {
+                let mut with = model.clone();
+                if sigma_px > 0.0 {
+                    upsert(&mut with, Effect::Blur { sigma_px });
+                }
+                with.effects.retain(|e| !matches!(e, Effect::Noise { .. }));
+                let mut dn = with.image(&p.radiance, v.width, v.height, &v.camera_model, 0);
+                dn.iter_mut().for_each(|x| *x = x.clamp(0.0, 255.0));
+                dn
+            }) as Box<dyn Fn(f64) -> Vec<f32> + Sync + '_>
+        })
+        .collect();
+    let views: Vec<EdgeView<'_>> = ctx
         .views
         .iter()
         .zip(&preds)
         .zip(&means)
-        .map(|((v, p), m)| ImagePair {
+        .zip(&renders)
+        .map(|(((v, p), m), r)| EdgeView {
             real: m,
-            render: &p.dn,
             mask: &p.mask,
             w: v.width,
             h: v.height,
+            render: r.as_ref(),
         })
         .collect();
-    let Some(m) = blur::measure(&views) else {
-        return;
-    };
+    let m = blur::measure(&views)?;
+    // Named on the edges' excess width (the evidence), valued by the matched PSF.
     let share = if m.real_var > 0.0 {
-        (m.sigma_px.powi(2) / m.real_var).min(1.0)
+        (m.excess_px.powi(2) / m.real_var).min(1.0)
     } else {
         0.0
     };
-    if m.sigma_px < BLUR_MIN_PX || share < min_share {
-        return;
+    if m.excess_px < BLUR_MIN_PX || share < min_share {
+        return None;
     }
     // The captures' spread (each left out in turn) and the estimator's calibration in
     // quadrature.
     let jack = jackknife(ctx.n_folds, &|hold| {
-        let kept: Vec<ImagePair<'_>> = views
+        let kept: Vec<EdgeView<'_>> = views
             .iter()
             .zip(&ctx.folds)
             .filter(|(_, &f)| f != hold)
@@ -64,8 +93,7 @@ pub(crate) fn blur_stage(
     let e = Effect::Blur {
         sigma_px: m.sigma_px,
     };
-    upsert(model, e);
-    out.push(named(
+    let n = named(
         &e,
         std_err,
         share,
@@ -74,5 +102,6 @@ pub(crate) fn blur_stage(
             "skyline edges ({} profiles): variance {:.3} px² real vs {:.3} px² rendered",
             m.profiles, m.real_var, m.render_var
         ),
-    ));
+    );
+    Some((e, n))
 }
