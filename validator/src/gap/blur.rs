@@ -21,17 +21,18 @@
 //! through the sensor model with a Gaussian PSF of σ added (the same discrete filter the model
 //! applies, on the camera's 8-bit range), its edges are measured by the same profiles and the
 //! same fit, and σ is the value at which they are as wide as the real ones (a false-position
-//! search in σ², started at the quadrature difference below).
-//! Whatever the estimator reads besides the PSF — a terrain edge that is not a clean step, the
-//! sampled kernel of a blur under a pixel on point-sampled images, the profile window — it
-//! reads on both sides and it cancels. The quadrature difference `σ_real² − σ_render²`
-//! still decides whether there is a blur ([`EdgeBlur::excess_px`]: below σ ≈ 0.4 px the
-//! sampled kernel hardly widens a point-sampled edge, so a width excess of noise would match
-//! a σ of 0.3–0.4), but no longer values it: it read small blurs low and large ones high (mini seeds 101–107, alone and next to an
-//! exposure: −0.11 px at 0.53 px, up to +0.17 at 1.5 px, RMS 0.107 px, 10 of the 13 named
-//! within 0.15 px); matched, the same 13 are within −0.040 … +0.078 px (RMS 0.040), and on the
-//! calibration seeds 108–114 all 14 within −0.066 … +0.111 px (RMS 0.046). A camera that integrates over its pixel area shows that area's 1/12 px² as blur
-//! the point-sampled simulation lacks, which is what it is.
+//! search in σ², started at the quadrature difference below). Whatever the estimator reads
+//! besides the PSF — a terrain edge that is not a clean step, the sampled kernel of a blur
+//! under a pixel on point-sampled images, the profile window — it reads on both sides and it
+//! cancels. The quadrature difference `σ_real² − σ_render²` still decides whether there is a
+//! blur ([`EdgeBlur::excess_px`]: below σ ≈ 0.4 px the sampled kernel hardly widens a
+//! point-sampled edge, so a width excess of noise would match a σ of 0.3–0.4), but no longer
+//! values it: it read small blurs low and large ones high (mini seeds 101–107, alone and next
+//! to an exposure: −0.11 px at 0.53 px, up to +0.17 at 1.5 px, RMS 0.107 px, 10 of the 13
+//! named within 0.15 px); matched, the same 13 are within −0.040 … +0.078 px (RMS 0.040), and
+//! on the calibration seeds 108–114 all 14 within −0.066 … +0.111 px (RMS 0.046). A camera
+//! that integrates over its pixel area shows that area's 1/12 px² as blur the point-sampled
+//! simulation lacks, which is what it is.
 //!
 //! Known limit: the blur is measured before the photometry, so the render is not clipped
 //! where a negative exposure offset clips a black sky in the real frames. The profiles whose
@@ -262,9 +263,9 @@ pub fn measure(views: &[EdgeView<'_>]) -> Option<EdgeBlur> {
 const MAX_SIGMA_PX: f64 = 4.0;
 
 /// The σ at which `width(σ)` (the blurred render's edge σ, `w0` at 0, increasing) reaches
-/// `target`, to 0.002 px (or 10⁻⁶ px² in the variance); 0 when the render is already as wide. Edge variances add nearly as
-/// the PSF's, so the root is sought in σ² by false position (Illinois), started at the
-/// quadrature difference.
+/// `target`, to 0.002 px (or 10⁻⁶ px² in the variance); 0 when the render is already as
+/// wide. Edge variances add nearly as the PSF's, so the root is sought in σ² by false position
+/// (Illinois), started at the quadrature difference.
 fn match_width(target: f64, w0: f64, width: &dyn Fn(f64) -> f64) -> f64 {
     let f = |u: f64| width(u.sqrt()).powi(2) - target * target;
     let mut lo = (0.0, w0 * w0 - target * target);
