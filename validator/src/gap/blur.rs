@@ -223,14 +223,15 @@ pub struct EdgeView<'a> {
 pub fn measure(views: &[EdgeView<'_>]) -> Option<EdgeBlur> {
     let plain: Vec<Vec<f32>> = views.par_iter().map(|v| (v.render)(0.0)).collect();
     let mut sites = Vec::new();
-    let mut real = Vec::new();
+    let (mut real, mut render) = (Vec::new(), Vec::new());
     for (i, v) in views.iter().enumerate() {
         for (x, y0) in skyline(v.mask, v.w, v.h) {
-            if let (Some(q), Some(_)) = (
+            if let (Some(q), Some(r)) = (
                 edge_samples(v.real, v.w, x, y0),
                 edge_samples(&plain[i], v.w, x, y0),
             ) {
                 real.extend(q);
+                render.extend(r);
                 sites.push((i, x, y0));
             }
         }
@@ -246,7 +247,7 @@ pub fn measure(views: &[EdgeView<'_>]) -> Option<EdgeBlur> {
             .collect();
         pooled_sigma(&samples)
     };
-    let (sq, sr) = (pooled_sigma(&real), width(&plain));
+    let (sq, sr) = (pooled_sigma(&real), pooled_sigma(&render));
     let sigma_px = match_width(sq, sr, &|s| {
         width(&views.par_iter().map(|v| (v.render)(s)).collect::<Vec<_>>())
     });

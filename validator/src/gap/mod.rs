@@ -13,8 +13,8 @@
 //!    model with the true hidden effects gives the floor a fit can reach.
 //! 2. **Attribute**, in the order that keeps effects from masquerading as each other: geometry
 //!    first ([`geometry`]: `distortion`, `pose-bias` jointly, by dense alignment), then `blur`
-//!    from the width of the skyline edges, the PSF that widens the render's as much ([`blur`]: a pixel fit would mistake the render's own
-//!    noise for it), then photometry jointly with that PSF ([`photometry`]: `exposure`,
+//!    from the width of the skyline edges, the PSF that widens the render's as much ([`blur`]:
+//!    a pixel fit would mistake the render's own noise for it), then photometry jointly with that PSF ([`photometry`]: `exposure`,
 //!    `vignetting`, `gamma`; the response curve and the black level first from the repeat
 //!    frames' noise over the dark background, a photon-transfer analysis the entry does not
 //!    enter ([`response`]): when it decides the curve, `gamma` is held at the curve it shows

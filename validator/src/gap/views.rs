@@ -51,21 +51,6 @@ impl GapView {
     }
 }
 
-/// A real and a rendered image of one view (DN, `w x h`) with the render's terrain mask.
-#[derive(Debug, Clone, Copy)]
-pub struct ImagePair<'a> {
-    /// Real DN (the frame mean).
-    pub real: &'a [f32],
-    /// Rendered DN.
-    pub render: &'a [f32],
-    /// The render sees terrain.
-    pub mask: &'a [bool],
-    /// Width.
-    pub w: usize,
-    /// Height.
-    pub h: usize,
-}
-
 /// What the simulation predicts for one view.
 #[derive(Debug, Clone)]
 pub struct Prediction {

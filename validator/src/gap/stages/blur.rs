@@ -24,29 +24,23 @@ pub(crate) fn blur_stage(
     if has(model, "blur") {
         return;
     }
-    if let Some((e, n)) = measure(ctx, model, min_share) {
-        upsert(model, e);
-        out.push(n);
-    }
-}
-
-/// The blur `model` lacks, with its record, if the real edges' excess width is at least
-/// [`BLUR_MIN_PX`] and explains `min_share` of their variance.
-fn measure(ctx: &Ctx<'_>, model: &SensorModel, min_share: f64) -> Option<(Effect, Named)> {
     let preds = ctx.predict_sampled(model, 1);
     let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
-    // Each view's render through the model with a PSF of σ added, on the 8-bit range.
+    // The expected image (no noise); each view's render through it with a PSF of σ added,
+    // on the 8-bit range.
+    let mut quiet = model.clone();
+    quiet.effects.retain(|e| !matches!(e, Effect::Noise { .. }));
+    let quiet = &quiet;
     let renders: Vec<Box<dyn Fn(f64) -> Vec<f32> + Sync + '_>> = ctx
         .views
         .iter()
         .zip(&preds)
         .map(|(v, p)| {
             Box::new(move |sigma_px: f64| {
-                let mut with = model.clone();
+                let mut with = quiet.clone();
                 if sigma_px > 0.0 {
                     upsert(&mut with, Effect::Blur { sigma_px });
                 }
-                with.effects.retain(|e| !matches!(e, Effect::Noise { .. }));
                 let mut dn = with.image(&p.radiance, v.width, v.height, &v.camera_model, 0);
                 dn.iter_mut().for_each(|x| *x = x.clamp(0.0, 255.0));
                 dn
@@ -67,7 +61,9 @@ fn measure(ctx: &Ctx<'_>, model: &SensorModel, min_share: f64) -> Option<(Effect
             render: r.as_ref(),
         })
         .collect();
-    let m = blur::measure(&views)?;
+    let Some(m) = blur::measure(&views) else {
+        return;
+    };
     // Named on the edges' excess width (the evidence), valued by the matched PSF.
     let share = if m.real_var > 0.0 {
         (m.excess_px.powi(2) / m.real_var).min(1.0)
@@ -75,7 +71,7 @@ fn measure(ctx: &Ctx<'_>, model: &SensorModel, min_share: f64) -> Option<(Effect
         0.0
     };
     if m.excess_px < BLUR_MIN_PX || share < min_share {
-        return None;
+        return;
     }
     // The captures' spread (each left out in turn) and the estimator's calibration in
     // quadrature.
@@ -93,7 +89,8 @@ fn measure(ctx: &Ctx<'_>, model: &SensorModel, min_share: f64) -> Option<(Effect
     let e = Effect::Blur {
         sigma_px: m.sigma_px,
     };
-    let n = named(
+    upsert(model, e);
+    out.push(named(
         &e,
         std_err,
         share,
@@ -102,6 +99,5 @@ fn measure(ctx: &Ctx<'_>, model: &SensorModel, min_share: f64) -> Option<(Effect
             "skyline edges ({} profiles): variance {:.3} px² real vs {:.3} px² rendered",
             m.profiles, m.real_var, m.render_var
         ),
-    );
-    Some((e, n))
+    ));
 }
