@@ -311,8 +311,31 @@ fn hidden_blur_is_measured_on_the_skyline() {
 fn nominal_noise_is_not_named() {
     let dir = tempfile::tempdir().unwrap();
     let db = campaign(dir.path(), &[]);
-    let v = regolith(&["gap", &db, "--entry", "laser/0.01", "--captures", "loc01"]);
+    let args = ["gap", &db, "--entry", "laser/0.01", "--captures", "loc01"];
+    let v = regolith(&args);
     assert!(!named(&v).contains(&"noise".to_string()), "{:?}", named(&v));
+    // Every step of the workflow is timed, in the order it ran.
+    let steps: Vec<&str> = v["step_seconds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s[0].as_str().unwrap())
+        .collect();
+    let expected: Vec<&str> = regolith_validator::gap::STEPS.iter().map(|s| s.0).collect();
+    assert_eq!(steps, expected);
+    // Without --json, a log (stderr not a terminal) gets one line per step as it begins.
+    let out = Command::new(env!("CARGO_BIN_EXE_regolith"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let log = String::from_utf8_lossy(&out.stderr);
+    let logged: Vec<&str> = log
+        .lines()
+        .filter_map(|l| l.split_once("] ").map(|(_, step)| step))
+        .collect();
+    assert_eq!(logged, expected, "{log}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("  time: loading"));
 }
 
 #[test]

@@ -152,4 +152,25 @@ fn validate_writes_a_self_contained_report() {
     for (k, bytes) in &a {
         assert!(bytes == &b[k], "{} differs between runs", k.display());
     }
+
+    // Without --json a log (stderr not a terminal) gets one line as each entry begins, and
+    // stdout the verdict.
+    let out = regolith(&[
+        "validate",
+        db_s,
+        "--entry",
+        "laser/0.02",
+        "--detector",
+        "fast",
+    ]);
+    ok(&out, &[0, 1]);
+    let log = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        log.lines()
+            .filter(|l| l.starts_with("[  0%] validating laser/0.02 (1/1)"))
+            .count(),
+        1,
+        "{log}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).starts_with("laser/0.02: "));
 }

@@ -22,7 +22,7 @@ use std::collections::BTreeMap;
 
 use rayon::prelude::*;
 use regolith_format::kinds::{self, HeightfieldMeta};
-use regolith_reader::captures::ImageKind;
+use regolith_reader::captures::{CaptureImage, ImageKind};
 use regolith_reader::heightfield::decode_grey_png;
 use regolith_reader::{ReaderError, ReleaseView};
 use serde::{Deserialize, Serialize};
@@ -452,7 +452,7 @@ pub fn view_images(
     entry: &str,
     scene: &Scene<'_>,
     light: &Light,
-    images: &[regolith_reader::captures::CaptureImage],
+    images: &[CaptureImage],
     capture: &str,
     camera: &str,
     sensor: &SensorModel,
@@ -529,6 +529,18 @@ pub struct ViewArtifacts<'a> {
     pub spectra: [&'a RadialSpectrum; 2],
 }
 
+/// The (capture, camera) views of `images`, sorted, each once: what [`validate_entry`] renders
+/// and compares, one per view.
+pub fn capture_views(images: &[CaptureImage]) -> Vec<(String, String)> {
+    let mut views: Vec<(String, String)> = images
+        .iter()
+        .map(|i| (i.capture.clone(), i.camera.clone()))
+        .collect();
+    views.sort();
+    views.dedup();
+    views
+}
+
 /// Validates one entry against every capture of the release.
 pub fn validate_entry(
     view: &ReleaseView,
@@ -556,12 +568,7 @@ pub fn validate_entry_observed(
     let light = campaign_light(view)?;
     let caps = view.captures("captures")?;
     let images = caps.images()?;
-    let mut views_in: Vec<(String, String)> = images
-        .iter()
-        .map(|i| (i.capture.clone(), i.camera.clone()))
-        .collect();
-    views_in.sort();
-    views_in.dedup();
+    let views_in = capture_views(&images);
     let params = DetectorParams::default();
     let eps = opts.thresholds.epsilon_px;
     let mut curve: Vec<f64> = EPSILONS.to_vec();

@@ -2,10 +2,8 @@
 //! release, with a progress bar on a terminal and a one-line summary per stage otherwise;
 //! `--check` parses every referenced file and prints an inventory without writing anything.
 
-use std::io::IsTerminal;
 use std::path::Path;
 
-use indicatif::{ProgressBar, ProgressStyle};
 use regolith_compiler::compile;
 use regolith_compiler::ingest::campaign;
 use regolith_compiler::inventory;
@@ -13,6 +11,7 @@ use regolith_format::limits::Limits;
 use regolith_reader::Writer;
 
 use super::{human_bytes, print_json};
+use crate::progress::Progress;
 use crate::Outcome;
 
 pub fn run(
@@ -47,27 +46,10 @@ pub fn run(
         anyhow::bail!("`regolith compile` needs --db DB (or --check to only parse the campaign)");
     };
     let writer = Writer::create_or_open(db)?;
-    let tty = std::io::stderr().is_terminal() && !json;
-    let bar = if tty {
-        ProgressBar::new(1000)
-    } else {
-        ProgressBar::hidden()
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {elapsed:>4} [{bar:30}] {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    let progress = |stage: &str, f: f64| {
-        if !tty && !json {
-            eprintln!("[{:>3.0}%] {stage}", f * 100.0);
-        }
-        bar.set_message(stage.to_string());
-        bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
-    };
+    let progress = Progress::new(json);
     let opts = compile::options(&c, release);
-    let summary = compile::compile(&c, &writer, &opts, &progress)?;
-    bar.finish_and_clear();
+    let summary = compile::compile(&c, &writer, &opts, &|stage, f| progress.report(stage, f))?;
+    progress.finish();
     if json {
         print_json(&summary)?;
         return Ok(Outcome::Ok);

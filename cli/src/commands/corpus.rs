@@ -3,11 +3,11 @@
 use std::path::Path;
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
 use regolith_corpus::{effects, generate, GenerateOptions, Preset};
 
 use super::print_json;
 use crate::args::{CorpusAction, PresetArg};
+use crate::progress::Progress;
 use crate::Outcome;
 
 pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
@@ -38,23 +38,10 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         captures: captures.map(|n| n as usize),
         hidden,
     };
-    let bar = if json {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(1000)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {elapsed:>4} [{bar:30}] {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    let progress = |stage: &str, f: f64| {
-        bar.set_message(stage.to_string());
-        bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
-    };
-    let summary = generate(&opts, out, &progress)
+    let progress = Progress::new(json);
+    let summary = generate(&opts, out, &|stage, f| progress.report(stage, f))
         .with_context(|| format!("generating into {}", out.display()))?;
-    bar.finish_and_clear();
+    progress.finish();
     let bad = match bad_inputs {
         Some(dir) => Some(regolith_corpus::write_bad_inputs(dir)?),
         None => None,

@@ -14,6 +14,7 @@ use regolith_validator::gap::{self, apply, GapOptions};
 use regolith_validator::validate::{validate_entry, Certificate, ValidateOptions};
 
 use super::print_json;
+use crate::progress::Progress;
 use crate::Outcome;
 
 /// One line per certificate: verdict, mean repeatability ratio to the real-vs-real ceiling, and
@@ -42,22 +43,26 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
     let db_path = out.join("db");
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let writer = Writer::create_or_open(&db_path)?;
-    let quiet = |_: &str, _: f64| {};
+    // Rough shares of a demo run's time (two cores), for the progress display.
+    let progress = Progress::new(json);
     let summary = compile::compile(
         &c,
         &writer,
         &compile::options(&c, Some("demo@1.0.0")),
-        &quiet,
+        &progress.part("compiling", 0.0, 0.25),
     )?;
     // Validate every laser heightfield against the real captures and store the certificates.
     let db = Database::open(&db_path)?;
     let view = db.release("latest")?;
     let mut certificates = Vec::new();
-    for e in view
+    let heightfields: Vec<_> = view
         .entries()
         .iter()
         .filter(|e| e.kind == kinds::HEIGHTFIELD)
-    {
+        .collect();
+    for (k, e) in heightfields.iter().enumerate() {
+        let done = k as f64 / heightfields.len() as f64;
+        progress.report(&format!("validating {}", e.name), 0.25 + 0.25 * done);
         let cert = validate_entry(&view, &e.name, &ValidateOptions::default())?;
         writer.put_certificate(&view.id, &e.name, &cert)?;
         certificates.push(cert);
@@ -77,7 +82,12 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
         .map(|e| e.name.clone());
     let gap_round = match &finest {
         Some(entry) => {
-            let result = gap::run(&view, entry, &GapOptions::default())?;
+            let result = gap::run_observed(
+                &view,
+                entry,
+                &GapOptions::default(),
+                &progress.part(&format!("gap on {entry}"), 0.5, 0.9),
+            )?;
             let applied = if result.named.is_empty() {
                 None
             } else {
@@ -93,6 +103,7 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
             // fitted sensor model.
             let revalidated = match &applied {
                 Some((label, _)) => {
+                    progress.report(&format!("validating {entry} in {label}"), 0.9);
                     let child = db.release(label)?;
                     let cert = validate_entry(&child, entry, &ValidateOptions::default())?;
                     writer.put_certificate(&child.id, entry, &cert)?;
@@ -109,7 +120,9 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
         .and_then(|b| serde_json::from_slice(&b).ok())
         .unwrap_or_default();
     drop(writer);
+    progress.report("verifying the database", 0.98);
     let report = verify(&db)?;
+    progress.finish();
     if json {
         print_json(
             &serde_json::json!({"db": db_path, "compile": summary, "verify_ok": report.ok(),

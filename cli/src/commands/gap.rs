@@ -8,6 +8,7 @@ use regolith_validator::gap::{self, apply, GapOptions};
 use serde_json::json;
 
 use super::print_json;
+use crate::progress::Progress;
 use crate::Outcome;
 
 #[allow(clippy::too_many_arguments)]
@@ -35,7 +36,9 @@ pub fn run(
         keep_images: report.is_some(),
         ..GapOptions::default()
     };
-    let result = gap::run(&view, entry, &opts)?;
+    let progress = Progress::new(json);
+    let result = gap::run_observed(&view, entry, &opts, &|step, f| progress.report(step, f))?;
+    let seconds = progress.finish();
     let applied = if apply_model && !result.named.is_empty() {
         let writer = Writer::create_or_open(db)?;
         let summary = json!({
@@ -64,6 +67,7 @@ pub fn run(
         if let Some(i) = &index {
             v["report"] = json!(i);
         }
+        v["step_seconds"] = json!(seconds);
         v["applied"] = match &applied {
             Some((label, id)) => json!({"release": label, "id": id.to_hex()}),
             None => serde_json::Value::Null,
@@ -113,6 +117,11 @@ pub fn run(
         if let (Some(tb), Some(ta)) = (b.texture_band_log_ratio, a.texture_band_log_ratio) {
             say!("  texture band power vs the real albedo (log10): {tb:.3} -> {ta:.3}");
         }
+        let steps: Vec<String> = seconds
+            .iter()
+            .map(|(step, s)| format!("{step} {s:.1} s"))
+            .collect();
+        say!("  time: {}", steps.join(", "));
         if let Some(i) = &index {
             say!("  report: {}", i.display());
         }

@@ -4,16 +4,19 @@
 //! also draws an offline HTML report (`regolith_validator::report`).
 
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::Context;
 use regolith_reader::{Database, Writer};
 use regolith_validator::features::Detector;
 use regolith_validator::report::ValidationReport;
 use regolith_validator::validate::{
-    certified_entries, validate_entry, Thresholds, ValidateOptions,
+    certified_entries, validate_entry_observed, Certificate, Thresholds, ValidateOptions,
+    ViewArtifacts,
 };
 
 use super::print_json;
+use crate::progress::Progress;
 use crate::Outcome;
 
 pub fn run(
@@ -60,37 +63,36 @@ pub fn run(
     };
     let mut all_pass = true;
     let mut out = Vec::new();
-    for name in &names {
+    // Progress counts views: each entry is rendered and compared at every camera of every capture.
+    let views_per_entry: usize = view
+        .captures("captures")?
+        .index
+        .captures
+        .iter()
+        .map(|c| c.cameras.len())
+        .sum();
+    let total = (names.len() * views_per_entry).max(1) as f64;
+    let progress = Progress::new(json);
+    let done = AtomicUsize::new(0);
+    for (k, name) in names.iter().enumerate() {
+        let step = format!("validating {name} ({}/{})", k + 1, names.len());
+        progress.report(&step, done.load(Ordering::Relaxed) as f64 / total);
+        let tick = |_: &ViewArtifacts<'_>| {
+            let d = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress.report(&step, d as f64 / total);
+        };
         let cert = match html.as_mut() {
             Some(r) => r
-                .validate_entry(&view, name, &opts)
+                .validate_entry(&view, name, &opts, &tick)
                 .map_err(anyhow::Error::from),
-            None => validate_entry(&view, name, &opts).map_err(anyhow::Error::from),
+            None => validate_entry_observed(&view, name, &opts, Some(&tick))
+                .map_err(anyhow::Error::from),
         }
         .with_context(|| format!("validating {name}"))?;
         let f = writer.put_certificate(&view.id, name, &cert)?;
         all_pass &= cert.passed;
         if !json {
-            say!(
-                "{name}: {} (certificate {})",
-                if cert.passed { "PASS" } else { "FAIL" },
-                f.object.short()
-            );
-            for (d, s) in &cert.summary {
-                let ceiling = s
-                    .ceiling
-                    .map_or("   -  ".to_string(), |c| format!("{:.3}", c.mean));
-                let ratio = s.ratio.map_or("   -  ".to_string(), |r| {
-                    format!("{:.3} [{:.3}, {:.3}]", r.mean, r.low, r.high)
-                });
-                say!(
-                    "  {d:<7} re-detected over chance {:.3}  ceiling {ceiling}  ratio {ratio}  one-directional {:.3} (chance {:.3})  ÷min(n) {:.3}",
-                    s.sim.mean, s.one_directional.mean, s.chance.mean, s.score.mean
-                );
-            }
-            for f in &cert.failures {
-                say!("  failed: {f}");
-            }
+            progress.suspend(|| print_certificate(name, &cert, &f.object.short()));
         }
         out.push(serde_json::json!({"entry": name, "certificate": f.object.to_hex(), "passed": cert.passed,
             "failures": cert.failures, "summary": cert.summary}));
@@ -113,4 +115,29 @@ pub fn run(
     } else {
         Outcome::CheckFailed
     })
+}
+
+/// The certificate of `name` as lines of text: verdict, object, then per detector the
+/// repeatability figures, then the failed criteria.
+fn print_certificate(name: &str, cert: &Certificate, object: &str) {
+    say!(
+        "{name}: {} (certificate {})",
+        if cert.passed { "PASS" } else { "FAIL" },
+        object
+    );
+    for (d, s) in &cert.summary {
+        let ceiling = s
+            .ceiling
+            .map_or("   -  ".to_string(), |c| format!("{:.3}", c.mean));
+        let ratio = s.ratio.map_or("   -  ".to_string(), |r| {
+            format!("{:.3} [{:.3}, {:.3}]", r.mean, r.low, r.high)
+        });
+        say!(
+            "  {d:<7} re-detected over chance {:.3}  ceiling {ceiling}  ratio {ratio}  one-directional {:.3} (chance {:.3})  ÷min(n) {:.3}",
+            s.sim.mean, s.one_directional.mean, s.chance.mean, s.score.mean
+        );
+    }
+    for f in &cert.failures {
+        say!("  failed: {f}");
+    }
 }

@@ -306,9 +306,61 @@ pub fn measure_model_on(
     Ok(ctx.measure(&ctx.predict_all(model), model, &shadow))
 }
 
+/// The workflow's steps in the order they run, each with its share of a run's time (estec,
+/// seed 2, hidden blur, two cores; the shares move with the effects a campaign hides), for
+/// [`run_observed`]'s progress.
+pub const STEPS: [(&str, f64); 8] = [
+    ("loading and measuring the gap", 0.12),
+    ("geometry: distortion, pose bias", 0.30),
+    ("blur", 0.06),
+    ("photometry: response, exposure, vignetting", 0.20),
+    ("shadows", 0.10),
+    ("texture", 0.04),
+    ("noise", 0.04),
+    ("measuring the gap after", 0.14),
+];
+
+/// Reports the start of each of [`STEPS`] with the share of the run done before it.
+struct Progress<'a> {
+    report: &'a dyn Fn(&str, f64),
+    next: usize,
+}
+
+impl<'a> Progress<'a> {
+    /// Announces the first step to `report`.
+    fn start(report: &'a dyn Fn(&str, f64)) -> Self {
+        let mut p = Progress { report, next: 0 };
+        p.step();
+        p
+    }
+
+    /// Announces the next step.
+    fn step(&mut self) {
+        let total: f64 = STEPS.iter().map(|s| s.1).sum();
+        let done: f64 = STEPS[..self.next].iter().map(|s| s.1).sum();
+        if let Some((label, _)) = STEPS.get(self.next) {
+            (self.report)(label, done / total);
+        }
+        self.next += 1;
+    }
+}
+
 /// Runs the gap workflow on `entry` (see the module docs).
 pub fn run(view: &ReleaseView, entry: &str, opts: &GapOptions) -> Result<GapResult, ReaderError> {
-    run_on(view, &entry_geometry(view, entry)?, entry, opts)
+    run_observed(view, entry, opts, &|_, _| {})
+}
+
+/// [`run`], calling `progress(step, fraction done)` as each of [`STEPS`] begins. The result
+/// does not depend on it.
+pub fn run_observed(
+    view: &ReleaseView,
+    entry: &str,
+    opts: &GapOptions,
+    progress: &dyn Fn(&str, f64),
+) -> Result<GapResult, ReaderError> {
+    let mut steps = Progress::start(progress);
+    let geometry = entry_geometry(view, entry)?;
+    run_steps(view, &geometry, entry, opts, &mut steps)
 }
 
 /// Runs the gap workflow with the terrain given as `geometry` instead of `entry`'s own, `entry`
@@ -323,6 +375,23 @@ pub fn run_on(
     entry: &str,
     opts: &GapOptions,
 ) -> Result<GapResult, ReaderError> {
+    run_steps(
+        view,
+        geometry,
+        entry,
+        opts,
+        &mut Progress::start(&|_, _| {}),
+    )
+}
+
+/// The workflow on `geometry`, announcing each step to `steps` (the first already announced).
+fn run_steps(
+    view: &ReleaseView,
+    geometry: &Geometry,
+    entry: &str,
+    opts: &GapOptions,
+    steps: &mut Progress<'_>,
+) -> Result<GapResult, ReaderError> {
     let ctx = Ctx::load(view, geometry, opts)?;
     let model_before = stored_model(view, entry)?;
     let preds_before = ctx.predict_all(&model_before);
@@ -334,18 +403,25 @@ pub fn run_on(
     let mut model = model_before.clone();
     let mut found = Vec::new();
     let mut candidates = BTreeMap::new();
+    steps.step();
     candidates.insert(
         "geometry".to_string(),
         geometry_stage(&ctx, &mut model, opts.min_share, &mut found),
     );
+    steps.step();
     blur_stage(&ctx, &mut model, opts.min_share, &mut found);
+    steps.step();
     candidates.insert(
         "photometry".to_string(),
         photometry_stage(&ctx, &mut model, opts.min_share, &witness, &mut found),
     );
+    steps.step();
     shadows_stage(&ctx, &mut model, &mut found);
+    steps.step();
     let texture = texture_stage(&ctx, &mut model, &mut found);
+    steps.step();
     noise_stage(&ctx, &preds_before, &mut model, &witness, &mut found);
+    steps.step();
     let preds_after = ctx.predict_all(&model);
     let metrics_after = ctx.measure(&preds_after, &model, &shadow);
     let masked = |p: &Prediction| -> Vec<f32> {

@@ -91,12 +91,14 @@ impl ValidationReport {
     }
 
     /// Validates `entry` (exactly as [`crate::validate::validate_entry`]) and draws its
-    /// figures into `DIR/<entry slug>/`; returns the certificate.
+    /// figures into `DIR/<entry slug>/`, handing each view to `also` as well (progress);
+    /// returns the certificate.
     pub fn validate_entry(
         &mut self,
         view: &ReleaseView,
         entry: &str,
         opts: &ValidateOptions,
+        also: &(dyn Fn(&ViewArtifacts<'_>) + Sync),
     ) -> Result<Certificate, ReportError> {
         let mut s = slug(entry);
         let base = s.clone();
@@ -109,11 +111,14 @@ impl ValidationReport {
         std::fs::create_dir_all(&dir).map_err(io_err(&dir))?;
         let records: Mutex<Vec<ViewRecord>> = Mutex::new(Vec::new());
         let failed: Mutex<Option<PlotError>> = Mutex::new(None);
-        let observe = |a: &ViewArtifacts<'_>| match write_view_images(&dir, a) {
-            Ok(r) => lock(&records).push(r),
-            Err(e) => {
-                lock(&failed).get_or_insert(e);
+        let observe = |a: &ViewArtifacts<'_>| {
+            match write_view_images(&dir, a) {
+                Ok(r) => lock(&records).push(r),
+                Err(e) => {
+                    lock(&failed).get_or_insert(e);
+                }
             }
+            also(a);
         };
         let cert = validate_entry_observed(view, entry, opts, Some(&observe))?;
         if let Some(e) = into_inner(failed) {
