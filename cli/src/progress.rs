@@ -42,7 +42,8 @@ impl Progress {
     /// `step` is under way, `fraction` (0–1) of the whole done. A step is timed from the first
     /// report that names it to the first that names another.
     pub fn report(&self, step: &str, fraction: f64) {
-        let fraction = fraction.clamp(0.0, 1.0);
+        // `+ 0.0` turns a −0 (an empty float sum is −0) into 0, which prints without a sign.
+        let fraction = fraction.clamp(0.0, 1.0) + 0.0;
         let mut steps = self.steps.lock().unwrap_or_else(|p| p.into_inner());
         if steps.last().is_none_or(|(last, _)| last != step) {
             steps.push((step.to_string(), Instant::now()));

@@ -186,7 +186,7 @@ fn edge_samples(img: &[f32], w: usize, x: usize, y0: usize) -> Option<Vec<(f64, 
 fn pooled_sigma(samples: &[(f64, f64)]) -> f64 {
     let f = |p: &[f64], out: &mut Vec<f64>| {
         out.clear();
-        out.extend(samples.iter().map(|(t, v)| step(*t, p[0]) - v));
+        out.par_extend(samples.par_iter().map(|(t, v)| step(*t, p[0]) - v));
     };
     solve(
         &Problem {
@@ -217,47 +217,99 @@ pub struct EdgeView<'a> {
     pub render: &'a (dyn Fn(f64) -> Vec<f32> + Sync),
 }
 
-/// Measures the PSF the renders lack along the skylines of their masks, over several views:
-/// the σ whose blurred renders' pooled edges are as wide as the real ones (both measured by
-/// the same profiles and the same fit). `None` with fewer than 30 usable profiles.
-pub fn measure(views: &[EdgeView<'_>]) -> Option<EdgeBlur> {
-    let plain: Vec<Vec<f32>> = views.par_iter().map(|v| (v.render)(0.0)).collect();
-    let mut sites = Vec::new();
-    let (mut real, mut render) = (Vec::new(), Vec::new());
-    for (i, v) in views.iter().enumerate() {
-        for (x, y0) in skyline(v.mask, v.w, v.h) {
-            if let (Some(q), Some(r)) = (
-                edge_samples(v.real, v.w, x, y0),
-                edge_samples(&plain[i], v.w, x, y0),
-            ) {
-                real.extend(q);
-                render.extend(r);
-                sites.push((i, x, y0));
-            }
+/// One usable skyline profile: its view, column and edge row, and the normalised samples of
+/// the real frames and of the render without an added PSF.
+struct Site {
+    view: usize,
+    x: usize,
+    y0: usize,
+    real: Vec<(f64, f64)>,
+    render: Vec<(f64, f64)>,
+}
+
+/// The skyline profiles of several views, found and sampled once: [`Skyline::measure`] then
+/// measures on any subset of the views (the jackknife over captures leaves each out in turn)
+/// exactly as on views given alone.
+pub struct Skyline<'a> {
+    views: &'a [EdgeView<'a>],
+    sites: Vec<Site>,
+}
+
+impl<'a> Skyline<'a> {
+    /// Finds every view's skyline profiles where both the real frames and the render show an
+    /// edge.
+    pub fn sample(views: &'a [EdgeView<'a>]) -> Skyline<'a> {
+        let per_view: Vec<Vec<Site>> = views
+            .par_iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let plain = (v.render)(0.0);
+                skyline(v.mask, v.w, v.h)
+                    .into_par_iter()
+                    .filter_map(|(x, y0)| {
+                        Some(Site {
+                            view: i,
+                            x,
+                            y0,
+                            real: edge_samples(v.real, v.w, x, y0)?,
+                            render: edge_samples(&plain, v.w, x, y0)?,
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        Skyline {
+            views,
+            sites: per_view.into_iter().flatten().collect(),
         }
     }
-    if sites.len() < MIN_PROFILES {
-        return None;
+
+    /// Measures the PSF the renders of the views `keep` selects lack along their skylines: the
+    /// σ whose blurred renders' pooled edges are as wide as the real ones (both measured by the
+    /// same profiles and the same fit). `None` with fewer than 30 usable profiles.
+    pub fn measure(&self, keep: &(dyn Fn(usize) -> bool + Sync)) -> Option<EdgeBlur> {
+        let sites: Vec<&Site> = self.sites.iter().filter(|s| keep(s.view)).collect();
+        if sites.len() < MIN_PROFILES {
+            return None;
+        }
+        let pooled = |of: &dyn Fn(&Site) -> &[(f64, f64)]| -> Vec<(f64, f64)> {
+            sites.iter().flat_map(|s| of(s).iter().copied()).collect()
+        };
+        let (sq, sr) = (
+            pooled_sigma(&pooled(&|s| &s.real)),
+            pooled_sigma(&pooled(&|s| &s.render)),
+        );
+        let width = |sigma: f64| {
+            let imgs: Vec<Option<Vec<f32>>> = self
+                .views
+                .par_iter()
+                .enumerate()
+                .map(|(i, v)| keep(i).then(|| (v.render)(sigma)))
+                .collect();
+            let samples: Vec<(f64, f64)> = sites
+                .par_iter()
+                .filter_map(|s| {
+                    let img = imgs[s.view].as_ref()?;
+                    edge_samples(img, self.views[s.view].w, s.x, s.y0)
+                })
+                .flatten()
+                .collect();
+            pooled_sigma(&samples)
+        };
+        Some(EdgeBlur {
+            sigma_px: match_width(sq, sr, &width),
+            excess_px: (sq * sq - sr * sr).max(0.0).sqrt(),
+            render_var: sr * sr,
+            real_var: sq * sq,
+            profiles: sites.len(),
+        })
     }
-    let width = |imgs: &[Vec<f32>]| {
-        let samples: Vec<(f64, f64)> = sites
-            .par_iter()
-            .filter_map(|&(i, x, y0)| edge_samples(&imgs[i], views[i].w, x, y0))
-            .flatten()
-            .collect();
-        pooled_sigma(&samples)
-    };
-    let (sq, sr) = (pooled_sigma(&real), pooled_sigma(&render));
-    let sigma_px = match_width(sq, sr, &|s| {
-        width(&views.par_iter().map(|v| (v.render)(s)).collect::<Vec<_>>())
-    });
-    Some(EdgeBlur {
-        sigma_px,
-        excess_px: (sq * sq - sr * sr).max(0.0).sqrt(),
-        render_var: sr * sr,
-        real_var: sq * sq,
-        profiles: sites.len(),
-    })
+}
+
+/// Measures the PSF the renders lack along the skylines of their masks, over several views
+/// ([`Skyline::measure`] on all of them).
+pub fn measure(views: &[EdgeView<'_>]) -> Option<EdgeBlur> {
+    Skyline::sample(views).measure(&|_| true)
 }
 
 /// Largest PSF σ searched, px.

@@ -61,7 +61,8 @@ pub(crate) fn blur_stage(
             render: r.as_ref(),
         })
         .collect();
-    let Some(m) = blur::measure(&views) else {
+    let skyline = blur::Skyline::sample(&views);
+    let Some(m) = skyline.measure(&|_| true) else {
         return;
     };
     // Named on the edges' excess width (the evidence), valued by the matched PSF.
@@ -76,13 +77,8 @@ pub(crate) fn blur_stage(
     // The captures' spread (each left out in turn) and the estimator's calibration in
     // quadrature.
     let jack = jackknife(ctx.n_folds, &|hold| {
-        let kept: Vec<EdgeView<'_>> = views
-            .iter()
-            .zip(&ctx.folds)
-            .filter(|(_, &f)| f != hold)
-            .map(|(v, _)| *v)
-            .collect();
-        vec![blur::measure(&kept).map_or(m.sigma_px, |k| k.sigma_px)]
+        let kept = skyline.measure(&|i| ctx.folds[i] != hold);
+        vec![kept.map_or(m.sigma_px, |k| k.sigma_px)]
     });
     let spread = jack.map_or(0.0, |j| j[0]);
     let std_err = BTreeMap::from([("sigma_px".to_string(), spread.hypot(blur::CALIBRATION_PX))]);
