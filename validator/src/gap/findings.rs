@@ -136,7 +136,9 @@
 //! not because the pairs rejected it.
 //!
 //! A hidden blur of 0.963 px (seed 2) came out 0.968 ± 0.054 px, nothing else named (13 531
-//! skyline profiles; the widths' quadrature difference would have read 0.995).
+//! skyline profiles; the widths' quadrature difference would have read 0.995). The run takes
+//! 6 min 6 s on two cores, the blur stage 14 s of it (80 s while the profiles were sampled one
+//! after another, and again for each capture left out).
 //!
 //! Hidden shadows (seed 2, a light recorded 3.4° and 1.3° off) came out 5.95° / 18.2° ± 1.1° /
 //! 0.7° for a true 6.83° / 18.00°, nothing else named. That run takes 10 min on two cores, the

@@ -308,17 +308,17 @@ pub fn measure_model_on(
 
 /// The workflow's steps in the order they run, each with its share of a run's time, for
 /// [`run_observed`]'s progress: as measured on estec (seed 2, hidden blur, `laser/0.01`, two
-/// cores, 8 min 34 s: 42, 183, 80, 25, 128, 27, 0.2 and 29 s); the shares move with what a
+/// cores, 6 min 6 s: 36, 153, 14, 20, 97, 22, 0.1 and 24 s); the shares move with what a
 /// campaign hides (a stage that names nothing stops early).
 pub const STEPS: [(&str, f64); 8] = [
-    ("loading and measuring the gap", 0.08),
-    ("geometry: distortion, pose bias", 0.36),
-    ("blur", 0.15),
-    ("photometry: response, exposure, vignetting", 0.05),
-    ("shadows", 0.25),
-    ("texture", 0.05),
+    ("loading and measuring the gap", 0.10),
+    ("geometry: distortion, pose bias", 0.42),
+    ("blur", 0.04),
+    ("photometry: response, exposure, vignetting", 0.055),
+    ("shadows", 0.265),
+    ("texture", 0.06),
     ("noise", 0.005),
-    ("measuring the gap after", 0.06),
+    ("measuring the gap after", 0.065),
 ];
 
 /// Reports the start of each of [`STEPS`] with the share of the run done before it.
