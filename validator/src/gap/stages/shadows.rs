@@ -76,9 +76,12 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
     let record = (ctx.light.azimuth_deg, ctx.light.elevation_deg);
     let lit = all(model, &ctx.light);
     let shadowed = all(&with(record), &ctx.light);
-    // A light that casts no shadow the views would see has nothing to test or refine.
-    if shadows::evidence(&shadow_views(ctx, &means, &lit, &shadowed)).pixels
-        < shadows::MIN_SHADOW_PIXELS
+    // A light that casts no shadow the views would see has nothing to test or refine, and
+    // shadows that make the prediction worse where the record casts them are not in the scene
+    // (see `shadows::MIN_EXPLAINED_AT_RECORD`): the direction search would only confirm it.
+    let at_record = shadows::evidence(&shadow_views(ctx, &means, &lit, &shadowed));
+    if at_record.pixels < shadows::MIN_SHADOW_PIXELS
+        || at_record.explained < shadows::MIN_EXPLAINED_AT_RECORD
     {
         return;
     }
