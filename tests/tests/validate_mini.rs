@@ -7,7 +7,7 @@ use regolith_compiler::ingest::campaign;
 use regolith_corpus::{generate, GenerateOptions, Preset};
 use regolith_reader::{verify, Database, Writer};
 use regolith_validator::features::Detector;
-use regolith_validator::validate::{validate_entry, ValidateOptions};
+use regolith_validator::validate::{validate_entry, ValidateOptions, Validator};
 
 #[test]
 fn certificates_are_bound_stored_and_verified() {
@@ -62,6 +62,33 @@ fn certificates_are_bound_stored_and_verified() {
         );
     }
     assert_eq!(cert.passed, cert.failures.is_empty());
+    // One validator for several entries keeps the real frames' detections (keypoints,
+    // descriptors, regions) for the next entry: its certificates are those made afresh.
+    let kept = ValidateOptions {
+        detectors: vec![Detector::Sift, Detector::Mser, Detector::Fast],
+        ..opts.clone()
+    };
+    let validator = Validator::new(&view, kept.clone()).unwrap();
+    let coarse = validator.entry("laser/0.02", None).unwrap();
+    let fine = validator.entry("laser/0.01", None).unwrap();
+    fn json(c: &impl serde::Serialize) -> serde_json::Value {
+        serde_json::to_value(c).unwrap()
+    }
+    assert_eq!(
+        json(&fine),
+        json(&validate_entry(&view, "laser/0.01", &kept).unwrap())
+    );
+    assert_ne!(json(&coarse.views), json(&fine.views), "the entries differ");
+    // A detector's figures do not depend on which others run with it.
+    let fast = |c: &regolith_validator::validate::Certificate| {
+        let v: Vec<_> = c
+            .views
+            .iter()
+            .filter(|v| v.detector == Detector::Fast)
+            .collect();
+        json(&v)
+    };
+    assert_eq!(fast(&fine), fast(&cert));
     w.put_certificate(&view.id, "laser/0.01", &cert).unwrap();
     let stored = db.certificate(&view.id, "laser/0.01").unwrap().unwrap();
     assert_eq!(stored["entry_hash"], cert.entry_hash);

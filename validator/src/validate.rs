@@ -19,9 +19,11 @@
 //! raw one-directional ratio are still reported.
 
 use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 use regolith_format::kinds::{self, HeightfieldMeta};
+use regolith_format::Entry;
 use regolith_reader::captures::{CaptureImage, ImageKind};
 use regolith_reader::heightfield::decode_grey_png;
 use regolith_reader::{ReaderError, ReleaseView};
@@ -29,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
 use crate::features::{self, contrast, Detector, DetectorParams, GreyF32};
-use crate::metrics::compare::{compare, MatchingFigures, ViewImages};
+use crate::metrics::compare::{compare, detect, Detected, MatchingFigures, ViewDetections};
 use crate::metrics::photometric::{self, Photometric};
 use crate::metrics::region_overlap::RegionRepeatability;
 use crate::metrics::repeatability::{Repeatability, EPSILONS};
@@ -457,13 +459,57 @@ pub fn view_images(
     camera: &str,
     sensor: &SensorModel,
 ) -> Result<(GreyF32, Option<GreyF32>, GreyF32, crate::render::Rendered), ReaderError> {
-    let frame = |k: u32| {
-        images.iter().find(|i| {
-            i.capture == capture && i.camera == camera && i.kind == ImageKind::Raw && i.frame == k
-        })
+    let (real_a, real_b) = real_frames(images, capture, camera, entry)?;
+    let (sim_img, rendered) = render_view(
+        view, entry, scene, light, images, capture, camera, sensor, &real_a,
+    )?;
+    Ok((real_a, real_b, sim_img, rendered))
+}
+
+/// The raw frame `k` of one view.
+fn raw_frame<'i>(
+    images: &'i [CaptureImage],
+    capture: &str,
+    camera: &str,
+    k: u32,
+) -> Option<&'i CaptureImage> {
+    images.iter().find(|i| {
+        i.capture == capture && i.camera == camera && i.kind == ImageKind::Raw && i.frame == k
+    })
+}
+
+/// The contrast-normalised real frames a and (if present) b of one view; errors name `entry`.
+fn real_frames(
+    images: &[CaptureImage],
+    capture: &str,
+    camera: &str,
+    entry: &str,
+) -> Result<(GreyF32, Option<GreyF32>), ReaderError> {
+    let a = raw_frame(images, capture, camera, 0)
+        .ok_or_else(|| decode_err(entry, format!("no raw frame of {capture} {camera}")))?;
+    let real_b = match raw_frame(images, capture, camera, 1) {
+        Some(b) => Some(contrast::stretch(&grey(&b.data, entry)?)),
+        None => None,
     };
-    let a =
-        frame(0).ok_or_else(|| decode_err(entry, format!("no raw frame of {capture} {camera}")))?;
+    Ok((contrast::stretch(&grey(&a.data, entry)?), real_b))
+}
+
+/// The contrast-normalised render of one view at real frame a's pose, through the entry's
+/// sensor model (noise seeded by the frame's index), checked against the real frame's size.
+#[allow(clippy::too_many_arguments)]
+fn render_view(
+    view: &ReleaseView,
+    entry: &str,
+    scene: &Scene<'_>,
+    light: &Light,
+    images: &[CaptureImage],
+    capture: &str,
+    camera: &str,
+    sensor: &SensorModel,
+    real_a: &GreyF32,
+) -> Result<(GreyF32, crate::render::Rendered), ReaderError> {
+    let a = raw_frame(images, capture, camera, 0)
+        .ok_or_else(|| decode_err(entry, format!("no raw frame of {capture} {camera}")))?;
     let calibrated = view.camera(&format!("cameras/{camera}"))?;
     let seed = images.iter().position(|i| std::ptr::eq(i, a)).unwrap_or(0) as u64;
     let at = Placement {
@@ -473,11 +519,6 @@ pub fn view_images(
     let r = sensor.render(scene, light, &calibrated, &at, 2, Some(seed));
     let rendered = r.rendered;
     let dn: Vec<f32> = r.dn.iter().map(|v| v / 255.0).collect();
-    let real_a = contrast::stretch(&grey(&a.data, entry)?);
-    let real_b = match frame(1) {
-        Some(b) => Some(contrast::stretch(&grey(&b.data, entry)?)),
-        None => None,
-    };
     let sim_img = GreyF32::new(rendered.width, rendered.height, dn)
         .ok_or_else(|| decode_err(entry, "empty render".into()))?;
     let sim_img = contrast::stretch(&sim_img);
@@ -490,7 +531,7 @@ pub fn view_images(
             ),
         ));
     }
-    Ok((real_a, real_b, sim_img, rendered))
+    Ok((sim_img, rendered))
 }
 
 /// The keypoints of one detector in one view, for a report.
@@ -508,7 +549,7 @@ pub struct DetectorKeypoints {
 
 /// What one (capture, camera) view was measured on: the images, keypoints and spectra behind
 /// the figures of the certificate, which keeps only the figures. Handed to the observer of
-/// [`validate_entry_observed`] (the HTML report draws them).
+/// [`Validator::entry`] (the HTML report draws them).
 #[derive(Debug)]
 pub struct ViewArtifacts<'a> {
     /// Capture name.
@@ -541,116 +582,219 @@ pub fn capture_views(images: &[CaptureImage]) -> Vec<(String, String)> {
     views
 }
 
-/// Validates one entry against every capture of the release.
+/// Validates one entry against every capture of the release (a [`Validator`] for one entry).
 pub fn validate_entry(
     view: &ReleaseView,
     entry: &str,
     opts: &ValidateOptions,
 ) -> Result<Certificate, ReaderError> {
-    validate_entry_observed(view, entry, opts, None)
+    Validator::new(view, opts.clone())?.entry(entry, None)
 }
 
-/// [`validate_entry`], handing each view's images and keypoints to `observe` (called once per
-/// view, from several threads, in no fixed order). The figures are the same with or without it.
-pub fn validate_entry_observed(
-    view: &ReleaseView,
-    entry: &str,
-    opts: &ValidateOptions,
-    observe: Option<&(dyn Fn(&ViewArtifacts<'_>) + Sync)>,
-) -> Result<Certificate, ReaderError> {
-    let e = view.entry(entry)?;
-    let sensor = stored_model(view, entry)?;
-    let geometry = entry_geometry(view, entry)?;
-    // Renders here are samples (with the model's noise), so they carry its texture detail too.
-    let geometry = sensor.detailed(&geometry).unwrap_or(geometry);
-    let scene = Scene::new(&geometry);
-    let caps_entry = view.entry_of_kind("captures", kinds::CAPTURES)?;
-    let light = campaign_light(view)?;
-    let caps = view.captures("captures")?;
-    let images = caps.images()?;
-    let views_in = capture_views(&images);
-    let params = DetectorParams::default();
-    let eps = opts.thresholds.epsilon_px;
-    let mut curve: Vec<f64> = EPSILONS.to_vec();
-    if !curve.iter().any(|e| (e - eps).abs() < 1e-9) {
-        curve.push(eps);
+/// Validates entries of one release against its captures. The real side of every comparison —
+/// the captures' raw frames, decoded and contrast-normalised, and what each detector finds in
+/// them — is the same whatever entry is compared with it, so it is made once per view, on first
+/// use, and kept for the next entry: validating estec's ten entries decoded its 32 real frames
+/// and ran five detectors on them ten times over. Certificates are the same either way.
+pub struct Validator<'v> {
+    view: &'v ReleaseView,
+    opts: ValidateOptions,
+    light: Light,
+    images: Vec<CaptureImage>,
+    views: Vec<(String, String)>,
+    real: Vec<Mutex<Option<Arc<RealView>>>>,
+}
+
+/// One view's real frames and each detector's output on them, in the options' order.
+struct RealView {
+    a: GreyF32,
+    b: Option<GreyF32>,
+    found: Vec<(Detected, Option<Detected>)>,
+}
+
+impl<'v> Validator<'v> {
+    /// A validator of `view`'s entries with `opts`.
+    pub fn new(view: &'v ReleaseView, opts: ValidateOptions) -> Result<Self, ReaderError> {
+        let light = campaign_light(view)?;
+        let images = view.captures("captures")?.images()?;
+        let views = capture_views(&images);
+        let real = views.iter().map(|_| Mutex::new(None)).collect();
+        Ok(Validator {
+            view,
+            opts,
+            light,
+            images,
+            views,
+            real,
+        })
     }
-    let per_view: Vec<(Vec<ViewMetrics>, Photometric, Vec<f64>)> = views_in
-        .par_iter()
-        .map(|(capture, camera)| -> Result<_, ReaderError> {
-            let (real_a, real_b, sim_img, rendered) = view_images(
-                view, entry, &scene, &light, &images, capture, camera, &sensor,
-            )?;
-            let w = sim_img.width;
-            let seen = |p: [f64; 2]| {
-                let (x, y) = (p[0].round(), p[1].round());
-                x >= 0.0
-                    && y >= 0.0
-                    && (x as usize) < w
-                    && (y as usize) < sim_img.height
-                    && rendered.mask[y as usize * w + x as usize] == 255
-            };
-            let seen_px = rendered.mask.iter().filter(|&&m| m == 255).count() as f64;
-            let mut out = Vec::new();
-            let mut kps = Vec::new();
-            for &d in &opts.detectors {
-                let images = ViewImages {
-                    real_a: &real_a,
-                    render: &sim_img,
-                    real_b: real_b.as_ref(),
-                };
-                let c = compare(images, d, &params, seen, seen_px, &curve, eps);
-                out.push(ViewMetrics {
-                    capture: capture.clone(),
-                    camera: camera.clone(),
-                    detector: d,
-                    counts: [c.real.len(), c.render.len()],
-                    sim: c.sim,
-                    ceiling: c.ceiling,
-                    regions: c
-                        .regions
-                        .map(|(sim, ceiling)| RegionMetrics { sim, ceiling }),
-                    matching: c
-                        .matching
-                        .map(|(sim, ceiling)| MatchingMetrics { sim, ceiling }),
-                });
-                if observe.is_some() {
-                    kps.push(DetectorKeypoints {
-                        detector: d,
-                        repeated: c.repeated,
-                        real: c.real,
-                        render: c.render,
-                    });
-                }
-            }
-            let mask: Vec<bool> = rendered.mask.iter().map(|&m| m == 255).collect();
-            let to255 = |g: &GreyF32| g.data.iter().map(|v| v * 255.0).collect::<Vec<f32>>();
-            let (ra, rs) = (to255(&real_a), to255(&sim_img));
-            let photo = photometric::compare(&ra, &rs, &mask, w, sim_img.height);
-            let (spec_s, spec_a) = (
-                radial_spectrum(&rs, w, sim_img.height, 8),
-                radial_spectrum(&ra, w, sim_img.height, 8),
-            );
-            let lr = log_ratio(&spec_s, &spec_a);
-            if let Some(observe) = observe {
-                observe(&ViewArtifacts {
+
+    /// The release validated.
+    pub fn release(&self) -> &'v ReleaseView {
+        self.view
+    }
+
+    /// The (capture, camera) views every entry is compared at (see [`capture_views`]).
+    pub fn views(&self) -> &[(String, String)] {
+        &self.views
+    }
+
+    /// View `k`'s real side, made on first use (decode errors name `entry`).
+    fn real(&self, k: usize, entry: &str) -> Result<Arc<RealView>, ReaderError> {
+        let mut slot = self.real[k]
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some(r) = slot.as_ref() {
+            return Ok(Arc::clone(r));
+        }
+        let (capture, camera) = &self.views[k];
+        let (a, b) = real_frames(&self.images, capture, camera, entry)?;
+        let params = DetectorParams::default();
+        let found = self
+            .opts
+            .detectors
+            .iter()
+            .map(|&d| {
+                let on_b = b.as_ref().map(|b| detect(b, d, &params));
+                (detect(&a, d, &params), on_b)
+            })
+            .collect();
+        let r = Arc::new(RealView { a, b, found });
+        *slot = Some(Arc::clone(&r));
+        Ok(r)
+    }
+
+    /// Validates `entry`, handing each view's images and keypoints to `observe` (called once
+    /// per view, from several threads, in no fixed order). The figures are the same with or
+    /// without it.
+    pub fn entry(
+        &self,
+        entry: &str,
+        observe: Option<&(dyn Fn(&ViewArtifacts<'_>) + Sync)>,
+    ) -> Result<Certificate, ReaderError> {
+        let (view, opts, light) = (self.view, &self.opts, &self.light);
+        let e = view.entry(entry)?;
+        let sensor = stored_model(view, entry)?;
+        let geometry = entry_geometry(view, entry)?;
+        // Renders here are samples (with the model's noise), so they carry its texture detail too.
+        let geometry = sensor.detailed(&geometry).unwrap_or(geometry);
+        let scene = Scene::new(&geometry);
+        let caps_entry = view.entry_of_kind("captures", kinds::CAPTURES)?;
+        let params = DetectorParams::default();
+        let eps = opts.thresholds.epsilon_px;
+        let mut curve: Vec<f64> = EPSILONS.to_vec();
+        if !curve.iter().any(|e| (e - eps).abs() < 1e-9) {
+            curve.push(eps);
+        }
+        let views_in = &self.views;
+        let per_view: Vec<(Vec<ViewMetrics>, Photometric, Vec<f64>)> = (0..views_in.len())
+            .into_par_iter()
+            .map(|k| -> Result<_, ReaderError> {
+                let (capture, camera) = &views_in[k];
+                let real = self.real(k, entry)?;
+                let (real_a, real_b) = (&real.a, real.b.as_ref());
+                let (sim_img, rendered) = render_view(
+                    view,
+                    entry,
+                    &scene,
+                    light,
+                    &self.images,
                     capture,
                     camera,
-                    real_a: &real_a,
-                    real_b: real_b.as_ref(),
-                    render: &sim_img,
-                    mask: &rendered.mask,
-                    keypoints: kps,
-                    spectra: [&spec_a, &spec_s],
-                });
-            }
-            Ok((out, photo, lr))
-        })
-        .collect::<Result<_, _>>()?;
+                    &sensor,
+                    real_a,
+                )?;
+                let w = sim_img.width;
+                let seen = |p: [f64; 2]| {
+                    let (x, y) = (p[0].round(), p[1].round());
+                    x >= 0.0
+                        && y >= 0.0
+                        && (x as usize) < w
+                        && (y as usize) < sim_img.height
+                        && rendered.mask[y as usize * w + x as usize] == 255
+                };
+                let seen_px = rendered.mask.iter().filter(|&&m| m == 255).count() as f64;
+                let mut out = Vec::new();
+                let mut kps = Vec::new();
+                for (&d, (on_a, on_b)) in opts.detectors.iter().zip(&real.found) {
+                    let on_render = detect(&sim_img, d, &params);
+                    let found = ViewDetections {
+                        real_a: on_a,
+                        render: &on_render,
+                        real_b: on_b.as_ref(),
+                    };
+                    let c = compare(found, d, seen, seen_px, &curve, eps);
+                    out.push(ViewMetrics {
+                        capture: capture.clone(),
+                        camera: camera.clone(),
+                        detector: d,
+                        counts: [c.real.len(), c.render.len()],
+                        sim: c.sim,
+                        ceiling: c.ceiling,
+                        regions: c
+                            .regions
+                            .map(|(sim, ceiling)| RegionMetrics { sim, ceiling }),
+                        matching: c
+                            .matching
+                            .map(|(sim, ceiling)| MatchingMetrics { sim, ceiling }),
+                    });
+                    if observe.is_some() {
+                        kps.push(DetectorKeypoints {
+                            detector: d,
+                            repeated: c.repeated,
+                            real: c.real,
+                            render: c.render,
+                        });
+                    }
+                }
+                let mask: Vec<bool> = rendered.mask.iter().map(|&m| m == 255).collect();
+                let to255 = |g: &GreyF32| g.data.iter().map(|v| v * 255.0).collect::<Vec<f32>>();
+                let (ra, rs) = (to255(real_a), to255(&sim_img));
+                let photo = photometric::compare(&ra, &rs, &mask, w, sim_img.height);
+                let (spec_s, spec_a) = (
+                    radial_spectrum(&rs, w, sim_img.height, 8),
+                    radial_spectrum(&ra, w, sim_img.height, 8),
+                );
+                let lr = log_ratio(&spec_s, &spec_a);
+                if let Some(observe) = observe {
+                    observe(&ViewArtifacts {
+                        capture,
+                        camera,
+                        real_a,
+                        real_b,
+                        render: &sim_img,
+                        mask: &rendered.mask,
+                        keypoints: kps,
+                        spectra: [&spec_a, &spec_s],
+                    });
+                }
+                Ok((out, photo, lr))
+            })
+            .collect::<Result<_, _>>()?;
+        certificate(
+            view, entry, e, caps_entry, opts, light, &sensor, views_in, per_view,
+        )
+    }
+}
+
+/// The certificate of `entry` from its per-view figures.
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn certificate(
+    view: &ReleaseView,
+    entry: &str,
+    e: &Entry,
+    caps_entry: &Entry,
+    opts: &ValidateOptions,
+    light: &Light,
+    sensor: &SensorModel,
+    views_in: &[(String, String)],
+    per_view: Vec<(Vec<ViewMetrics>, Photometric, Vec<f64>)>,
+) -> Result<Certificate, ReaderError> {
+    let eps = opts.thresholds.epsilon_px;
     let mut views = Vec::new();
     let mut photo = Vec::new();
     let mut spectrum = vec![0.0; 8];
-    for ((v, p, lr), (capture, camera)) in per_view.into_iter().zip(&views_in) {
+    for ((v, p, lr), (capture, camera)) in per_view.into_iter().zip(views_in) {
         views.extend(v);
         photo.push((capture.clone(), camera.clone(), p));
         for (s, x) in spectrum.iter_mut().zip(&lr) {

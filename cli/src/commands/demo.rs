@@ -11,7 +11,7 @@ use regolith_compiler::compile;
 use regolith_format::kinds;
 use regolith_reader::{verify, Database, Writer};
 use regolith_validator::gap::{self, apply, GapOptions};
-use regolith_validator::validate::{validate_entry, Certificate, ValidateOptions};
+use regolith_validator::validate::{validate_entry, Certificate, ValidateOptions, Validator};
 
 use super::print_json;
 use crate::progress::Progress;
@@ -60,10 +60,11 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
         .iter()
         .filter(|e| e.kind == kinds::HEIGHTFIELD)
         .collect();
+    let validator = Validator::new(&view, ValidateOptions::default())?;
     for (k, e) in heightfields.iter().enumerate() {
         let done = k as f64 / heightfields.len() as f64;
         progress.report(&format!("validating {}", e.name), 0.25 + 0.25 * done);
-        let cert = validate_entry(&view, &e.name, &ValidateOptions::default())?;
+        let cert = validator.entry(&e.name, None)?;
         writer.put_certificate(&view.id, &e.name, &cert)?;
         certificates.push(cert);
     }

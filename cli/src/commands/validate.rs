@@ -11,8 +11,7 @@ use regolith_reader::{Database, Writer};
 use regolith_validator::features::Detector;
 use regolith_validator::report::ValidationReport;
 use regolith_validator::validate::{
-    certified_entries, validate_entry_observed, Certificate, Thresholds, ValidateOptions,
-    ViewArtifacts,
+    certified_entries, Certificate, Thresholds, ValidateOptions, Validator, ViewArtifacts,
 };
 
 use super::print_json;
@@ -63,15 +62,10 @@ pub fn run(
     };
     let mut all_pass = true;
     let mut out = Vec::new();
+    // One validator for every entry: the real frames' side is made once (see `Validator`).
+    let validator = Validator::new(&view, opts)?;
     // Progress counts views: each entry is rendered and compared at every camera of every capture.
-    let views_per_entry: usize = view
-        .captures("captures")?
-        .index
-        .captures
-        .iter()
-        .map(|c| c.cameras.len())
-        .sum();
-    let total = (names.len() * views_per_entry).max(1) as f64;
+    let total = (names.len() * validator.views().len()).max(1) as f64;
     let progress = Progress::new(json);
     let done = AtomicUsize::new(0);
     for (k, name) in names.iter().enumerate() {
@@ -83,9 +77,10 @@ pub fn run(
         };
         let cert = match html.as_mut() {
             Some(r) => r
-                .validate_entry(&view, name, &opts, &tick)
+                .validate_entry(&validator, name, &tick)
                 .map_err(anyhow::Error::from),
-            None => validate_entry_observed(&view, name, &opts, Some(&tick))
+            None => validator
+                .entry(name, Some(&tick))
                 .map_err(anyhow::Error::from),
         }
         .with_context(|| format!("validating {name}"))?;

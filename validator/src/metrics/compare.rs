@@ -5,7 +5,7 @@
 //! regions by ellipse overlap error < 40 %, as the Mikolajczyk protocol prescribes for region
 //! detectors; SIFT additionally gets the matching score and a RANSAC inlier ratio, the thesis's
 //! Table 6.1 analogue), and each detector must run once per image, not once per metric. This
-//! module runs the detector once per image and derives every metric from that one result.
+//! module derives every metric from one detection per image ([`detect`]).
 //!
 //! The views compared share the pose, so the mapping between them is the identity and the region
 //! both see is the render's terrain mask. For SIFT + RANSAC the model is a homography (the
@@ -52,13 +52,17 @@ pub struct DetectorComparison {
 }
 
 /// A detector's output on one image: keypoints, plus descriptors (SIFT) or regions (MSER).
-struct Detected {
+/// A real frame's is the same whatever entry it is compared with, so a validation of several
+/// entries detects on each real frame once ([`crate::validate::Validator`]).
+#[derive(Debug, Clone)]
+pub struct Detected {
     kps: Vec<Keypoint>,
     descriptors: Vec<Vec<f32>>,
     ellipses: Vec<Ellipse>,
 }
 
-fn detect(img: &GreyF32, d: Detector, params: &DetectorParams) -> Detected {
+/// Runs detector `d` on `img`.
+pub fn detect(img: &GreyF32, d: Detector, params: &DetectorParams) -> Detected {
     match d {
         Detector::Sift => {
             let (kps, descriptors) = detect_and_describe_sift(img, &params.sift);
@@ -102,56 +106,50 @@ fn matching(
     }
 }
 
-/// The images of one view, contrast-normalised alike.
+/// One detector's output on the images of one view, contrast-normalised alike.
 #[derive(Debug, Clone, Copy)]
-pub struct ViewImages<'a> {
-    /// Real frame a.
-    pub real_a: &'a GreyF32,
-    /// The render at the same pose.
-    pub render: &'a GreyF32,
-    /// Real frame b at the same pose, when the campaign has repeat frames.
-    pub real_b: Option<&'a GreyF32>,
+pub struct ViewDetections<'a> {
+    /// On real frame a.
+    pub real_a: &'a Detected,
+    /// On the render at the same pose.
+    pub render: &'a Detected,
+    /// On real frame b at the same pose, when the campaign has repeat frames.
+    pub real_b: Option<&'a Detected>,
 }
 
-/// Runs detector `d` on the view's real frame a, render and real frame b (when present) and
-/// measures: point repeatability over `curve` (which contains `eps`), the ceiling at `eps`, and
-/// the detector-specific metrics. `seen(p)` says whether pixel `p` shows terrain in the render,
-/// and `seen_px` is how many pixels do (the area of the chance correction).
+/// Measures detector `d`'s output on one view (see [`detect`]): point repeatability over
+/// `curve` (which contains `eps`), the ceiling at `eps`, and the detector-specific metrics.
+/// `seen(p)` says whether pixel `p` shows terrain in the render, and `seen_px` is how many
+/// pixels do (the area of the chance correction).
 pub fn compare(
-    images: ViewImages<'_>,
+    found: ViewDetections<'_>,
     d: Detector,
-    params: &DetectorParams,
     seen: impl Fn([f64; 2]) -> bool,
     seen_px: f64,
     curve: &[f64],
     eps: f64,
 ) -> DetectorComparison {
-    let a = detect(images.real_a, d, params);
-    let s = detect(images.render, d, params);
-    let b = images.real_b.map(|img| detect(img, d, params));
+    let (a, s, b) = (found.real_a, found.render, found.real_b);
     let (pa, ps) = (points(&a.kps), points(&s.kps));
     let sim = repeatability(&pa, &ps, Some, &seen, seen_px, curve);
-    let ceiling = b
-        .as_ref()
-        .map(|b| repeatability(&pa, &points(&b.kps), Some, &seen, seen_px, &[eps])[0]);
+    let ceiling = b.map(|b| repeatability(&pa, &points(&b.kps), Some, &seen, seen_px, &[eps])[0]);
     let repeated = repeated_pairs(&pa, &ps, Some, &seen, eps);
     let regions = (d == Detector::Mser).then(|| {
         let rp = RegionParams::default();
         (
             region_repeatability(&a.ellipses, &s.ellipses, Some, &seen, &rp),
-            b.as_ref()
-                .map(|b| region_repeatability(&a.ellipses, &b.ellipses, Some, &seen, &rp)),
+            b.map(|b| region_repeatability(&a.ellipses, &b.ellipses, Some, &seen, &rp)),
         )
     });
     let matching = (d == Detector::Sift).then(|| {
         (
-            matching(&a, &s, &seen, eps),
-            b.as_ref().map(|b| matching(&a, b, &seen, eps)),
+            matching(a, s, &seen, eps),
+            b.map(|b| matching(a, b, &seen, eps)),
         )
     });
     DetectorComparison {
-        real: a.kps,
-        render: s.kps,
+        real: a.kps.clone(),
+        render: s.kps.clone(),
         sim,
         ceiling,
         repeated,

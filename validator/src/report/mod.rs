@@ -15,7 +15,7 @@
 //!   disk, survives being zipped or attached to a ticket, and a headless browser can check it
 //!   (`tools/report/check_report.sh`).
 //! * **Nothing is measured twice**: the images and keypoints come from the validation run
-//!   itself through [`crate::validate::validate_entry_observed`]; the curves and tables are
+//!   itself through [`crate::validate::Validator::entry`]; the curves and tables are
 //!   drawn from the [`crate::validate::Certificate`] it returns. The report cannot disagree
 //!   with the certificate.
 //! * **Generic figures** ([`plot`]: line plots, grouped bar charts, grey/diverging/magnitude

@@ -6,8 +6,6 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use regolith_reader::ReleaseView;
-
 use super::html::{Cell, Figure, Mark, Page};
 use super::io_err;
 use super::plot::{
@@ -17,9 +15,7 @@ use super::plot::{
 use super::{slug, ReportError};
 use crate::features::Detector;
 use crate::metrics::stats::Interval;
-use crate::validate::{
-    validate_entry_observed, Certificate, ValidateOptions, ViewArtifacts, ViewMetrics,
-};
+use crate::validate::{Certificate, Validator, ViewArtifacts, ViewMetrics};
 
 /// |real − render| at this value and above is drawn white in the difference image.
 const DIFF_FULL_SCALE: f32 = 0.5;
@@ -90,14 +86,13 @@ impl ValidationReport {
         })
     }
 
-    /// Validates `entry` (exactly as [`crate::validate::validate_entry`]) and draws its
+    /// Validates `entry` through `validator` (exactly as [`Validator::entry`]) and draws its
     /// figures into `DIR/<entry slug>/`, handing each view to `also` as well (progress);
     /// returns the certificate.
     pub fn validate_entry(
         &mut self,
-        view: &ReleaseView,
+        validator: &Validator<'_>,
         entry: &str,
-        opts: &ValidateOptions,
         also: &(dyn Fn(&ViewArtifacts<'_>) + Sync),
     ) -> Result<Certificate, ReportError> {
         let mut s = slug(entry);
@@ -120,7 +115,7 @@ impl ValidationReport {
             }
             also(a);
         };
-        let cert = validate_entry_observed(view, entry, opts, Some(&observe))?;
+        let cert = validator.entry(entry, Some(&observe))?;
         if let Some(e) = into_inner(failed) {
             return Err(e.into());
         }
