@@ -140,6 +140,14 @@
 //! It is no longer chosen because its held-out drop, 0.034, is under the geometric floor (0.04) —
 //! not because the pairs rejected it.
 //!
+//! The photometric effects alone (seed 2): a response curve of 2.0333 came out 2.0317 ± 0.0016
+//! (from the repeat frames' noise), the photometric RMS 64.7 → 12.6 DN against 13.6 with
+//! nothing hidden; an exposure of gain 0.7372 and offset −0.0437 (it clips the background)
+//! 0.7583 ± 0.0216 and −0.0521 ± 0.0060 (+2.9 % and −2.1 DN; 33.9 → 10.2 DN); a noise of
+//! shot gain 0.0997 and read σ 2.83 DN 0.0963 and 2.87 DN (the spectrum's RMS log ratio
+//! 0.470 → 0.085); each alone, nothing else named. A run takes 4.5 min on two cores, 2.6 of
+//! them in the geometric stage, which finds nothing there.
+//!
 //! A hidden blur of 0.963 px (seed 2) came out 0.968 ± 0.054 px, nothing else named (13 531
 //! skyline profiles; the widths' quadrature difference would have read 0.995). The run takes
 //! 6 min 6 s on two cores, the blur stage 14 s of it (80 s while the profiles were sampled one
