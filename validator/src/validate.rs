@@ -445,27 +445,6 @@ pub fn campaign_light(view: &ReleaseView) -> Result<Light, ReaderError> {
     )
 }
 
-/// The contrast-normalised real frames a (and b, if present) and the render of one view through
-/// the entry's sensor model `sensor` (noise seeded by the frame's index), with the render's
-/// terrain mask (255 = terrain).
-#[allow(clippy::type_complexity, clippy::too_many_arguments)]
-pub fn view_images(
-    view: &ReleaseView,
-    entry: &str,
-    scene: &Scene<'_>,
-    light: &Light,
-    images: &[CaptureImage],
-    capture: &str,
-    camera: &str,
-    sensor: &SensorModel,
-) -> Result<(GreyF32, Option<GreyF32>, GreyF32, crate::render::Rendered), ReaderError> {
-    let (real_a, real_b) = real_frames(images, capture, camera, entry)?;
-    let (sim_img, rendered) = render_view(
-        view, entry, scene, light, images, capture, camera, sensor, &real_a,
-    )?;
-    Ok((real_a, real_b, sim_img, rendered))
-}
-
 /// The raw frame `k` of one view.
 fn raw_frame<'i>(
     images: &'i [CaptureImage],
