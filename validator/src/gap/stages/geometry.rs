@@ -205,9 +205,10 @@ impl Witness {
 /// is weighted by the ratio of its residual's standard deviation to the render's
 /// (inverse-variance weighting), taken at the render's own fit and then again at the joint
 /// fit, which is fitted once more with them: at the render's fit the pairs' residual still
-/// holds the texture's pull they are there to undo (cross-capture pairs on mini 0.15–0.8
-/// there, 0.04–0.5 at the joint fit; weighted at the render's fit alone, a hidden pose bias's
-/// axes came out within the targets on 35 of 42, seeds 101–107, against 37 reweighted).
+/// holds the texture's pull they are there to undo (cross-capture pairs on mini seeds
+/// 101–107: 0.17–0.81 there, 0.04–0.44 at the refined pose; weighted at the render's fit
+/// alone, a hidden pose bias's axes came out within the targets on 35 of 42, against 37
+/// reweighted).
 /// With the pairs a distortion gets both
 /// radial terms: the pairs see the radial profile through the terrain's geometry, free of the
 /// texture, and the second term took the hidden distortion's displacement at 0.7 of the radius
