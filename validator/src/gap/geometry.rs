@@ -45,6 +45,8 @@
 //! stopped at 0.025 on a slope). The distortion's second radial term is fitted last, from the
 //! one-term solution, and only when it lowers the held-out residual (see the gap module).
 
+use std::sync::Arc;
+
 use rayon::prelude::*;
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
@@ -71,8 +73,9 @@ pub struct ViewImages {
     pub width: usize,
     /// Height.
     pub height: usize,
-    /// Band-passed, normalised real image.
-    pub real: Vec<f32>,
+    /// Band-passed, normalised real image (shared: the levels a fit is joined into clone the
+    /// views, and on estec the cross-capture pairs' scaled band-passes run to gigabytes).
+    pub real: Arc<[f32]>,
 }
 
 /// One sampled render pixel.
@@ -229,7 +232,7 @@ pub fn prepare(
             fold,
             width: w,
             height: h,
-            real: qb,
+            real: qb.into(),
         },
         obs,
     )
@@ -410,7 +413,7 @@ pub fn cross_pairs(
                 fold: v.fold,
                 width: v.width,
                 height: v.height,
-                real: d,
+                real: d.into(),
             }
         })
         .collect();
