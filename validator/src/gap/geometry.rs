@@ -238,6 +238,36 @@ pub fn prepare(
     )
 }
 
+/// The terrain `mask` of every view eroded by 2 px: where a pair's mate may fall.
+fn inner_masks(views: &[ViewImages], mask: &[&[bool]]) -> Vec<Vec<bool>> {
+    mask.iter()
+        .zip(views)
+        .map(|(m, v)| erode(m, v.width, v.height, 2))
+        .collect()
+}
+
+/// Every view as the other side of a pair: where it sees a ground point, given the renders'
+/// `poses` (`ground_from_camera`), `depth` and `inner` masks.
+fn depth_views<'a>(
+    views: &'a [ViewImages],
+    poses: &[Pose],
+    depth: &[&'a [f32]],
+    inner: &'a [Vec<bool>],
+) -> Vec<DepthView<'a>> {
+    views
+        .iter()
+        .enumerate()
+        .map(|(b, v)| DepthView {
+            camera: &v.camera,
+            camera_from_ground: poses[b].inverse(),
+            depth: depth[b],
+            inner: &inner[b],
+            w: v.width,
+            h: v.height,
+        })
+        .collect()
+}
+
 /// Stereo pairs: every render sample of `obs` that the other camera of the same capture sees
 /// too, as a residual between the two real images with weight 1. The point is moved through
 /// the ground frame with the renders' `poses` (`ground_from_camera`) and kept if the other
@@ -256,24 +286,8 @@ pub fn stereo_pairs(
     depth: &[&[f32]],
     mask: &[&[bool]],
 ) -> Vec<Observation> {
-    let inner: Vec<Vec<bool>> = mask
-        .iter()
-        .zip(views)
-        .map(|(m, v)| erode(m, v.width, v.height, 2))
-        .collect();
-    let seen: Vec<DepthView<'_>> = views
-        .iter()
-        .enumerate()
-        .map(|(b, v)| DepthView {
-            camera: &v.camera,
-            camera_from_ground: poses[b].inverse(),
-            depth: depth[b],
-            inner: &inner[b],
-            w: v.width,
-            h: v.height,
-        })
-        .collect();
-    let seen = &seen;
+    let inner = inner_masks(views, mask);
+    let seen = &depth_views(views, poses, depth, &inner);
     obs.par_iter()
         .filter(|o| o.mate.is_none())
         .flat_map_iter(|o| {
@@ -331,24 +345,8 @@ pub fn cross_pairs(
     band: [f64; 2],
 ) -> (Vec<ViewImages>, Vec<Observation>) {
     let n = views.len();
-    let inner: Vec<Vec<bool>> = mask
-        .iter()
-        .zip(views)
-        .map(|(m, v)| erode(m, v.width, v.height, 2))
-        .collect();
-    let seen: Vec<DepthView<'_>> = views
-        .iter()
-        .enumerate()
-        .map(|(b, v)| DepthView {
-            camera: &v.camera,
-            camera_from_ground: poses[b].inverse(),
-            depth: depth[b],
-            inner: &inner[b],
-            w: v.width,
-            h: v.height,
-        })
-        .collect();
-    let seen = &seen;
+    let inner = inner_masks(views, mask);
+    let seen = &depth_views(views, poses, depth, &inner);
     // Pairs with their mate's (view, scale step), the best-matched scales first.
     let tagged: Vec<(Observation, (usize, i32))> = obs
         .par_iter()
