@@ -10,10 +10,9 @@
 //! Tolerances are those measured on these campaigns (the gap module's docs, known limits);
 //! where they are looser than the workflow's targets, what limits them is how little of the
 //! camera's field and depth range mini's two capture locations show, not the optimiser. From
-//! six locations a pose bias's displacement and roll are within the targets (the second test),
-//! though not yet every axis of it on the laser entry; given the campaign's true terrain
-//! instead, every axis of a pose bias and a distortion's `dk1` are (the third test), which
-//! shows the entry is what limits them. The fourth test looks through one camera alone, as for
+//! six locations every axis of a pose bias on the laser entry is within the targets (the second
+//! test); given the campaign's true terrain instead, every axis of a pose bias and a
+//! distortion's `dk1` are from two (the third test), which shows the entry is what limits them. The fourth test looks through one camera alone, as for
 //! a rover with a single NavCam.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -69,14 +68,6 @@ const TEXTURE_TOL: f64 = 0.25;
 /// determine, here to 3.9 and 6.3 mm (3.5 and 5.8 next to a vignetting; 3.2 and 6.7 mm with
 /// the survey markers sampled).
 const POSE_BIAS_TOL_M: f64 = 0.007;
-/// The same from six capture locations: the workflow's ±3 mm (1.8 and 2.6 mm on seeds 101,
-/// 102; 1.9 and 2.0 mm with the survey markers sampled).
-const POSE_BIAS_SIX_TOL_M: f64 = 0.003;
-/// The roll (rotation about the optical axis, which the stereo pairs see) from six capture
-/// locations, degrees: the workflow's ±0.1° (−0.080 and +0.050°). Pitch and vertical
-/// translation still trade off there (seed 102: pitch 0.14° off with 3 mm of y, 0.22° and
-/// 6 mm with the survey markers sampled; seed 101 within 0.09° and 1.7 mm on every axis).
-const POSE_BIAS_SIX_ROLL_TOL_DEG: f64 = 0.1;
 /// Tolerances of an effect hidden next to another are this many times wider (except
 /// vignetting's): exposure and the response curve are only jointly identifiable with the
 /// level and falloff fitted next to them.
@@ -354,46 +345,21 @@ fn a_brightening_exposure_is_named_exposure_not_a_response_curve() {
     assert_single_effect_cases("exposure", &[106, 110], &Setup::default());
 }
 
+/// From six capture locations (`corpus generate --captures 6`) a pose bias on the laser entry
+/// must come out within the workflow's ±0.1° and ±3 mm on every axis: the cross-capture pairs
+/// (the gap module's `geometry::cross_pairs`) see a bias fixed to the rig free of the entry's
+/// texture. Seeds 101–104: worst axes −0.071°/−2.2 mm, −0.014°/+0.7 mm, +0.078°/−1.7 mm,
+/// −0.068°/−1.6 mm (before those pairs seed 102's pitch read 0.14° off with 3 mm of y, and seed
+/// 103's 0.36–0.38°).
 #[test]
-fn a_pose_bias_seen_from_six_capture_locations_is_within_3_mm_and_0_1_degrees_of_roll() {
-    let root = tempfile::tempdir().unwrap();
-    let mut bad = Vec::new();
-    for seed in SEEDS {
-        let r = run_case(
-            root.path(),
-            "pose-bias",
-            seed,
-            &["pose-bias"],
-            &Setup {
-                captures: Some(6),
-                ..Setup::default()
-            },
-        );
-        let line = r.line("pose-bias (6)", seed);
-        println!("{line}");
-        let truth = r.truth[0];
-        let Some(fit) = fitted_effect(&r, "pose-bias") else {
-            bad.push(format!("seed {seed}: not named: {line}"));
-            continue;
-        };
-        let (a, b) = (bias_displacement(&fit), bias_displacement(&truth));
-        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
-        let roll = fit.params()["rotation_deg.z"] - truth.params()["rotation_deg.z"];
-        println!(
-            "    displacement at 1.5 m {:.1} mm off, roll {roll:+.3}° off",
-            d * 1e3
-        );
-        if r.named() != ["pose-bias"]
-            || d > POSE_BIAS_SIX_TOL_M
-            || roll.abs() > POSE_BIAS_SIX_ROLL_TOL_DEG
-        {
-            bad.push(format!(
-                "seed {seed}: {:.1} mm, roll {roll:+.3}°: {line}",
-                d * 1e3
-            ));
-        }
-    }
-    assert!(bad.is_empty(), "{}", bad.join("\n"));
+fn a_pose_bias_seen_from_six_capture_locations_is_within_the_targets_on_every_axis() {
+    assert_within_targets_on_every_axis(
+        &Setup {
+            captures: Some(6),
+            ..Setup::default()
+        },
+        &[("pose-bias", 101), ("pose-bias", 102)],
+    );
 }
 
 /// The fitted parameters of `r`'s one hidden effect `label` off the truth by more than the
@@ -412,17 +378,19 @@ fn axis_misses(r: &CaseResult, label: &str, seed: u64, line: &str) -> Vec<String
     bad
 }
 
-/// Runs each `(label, seed)` case on `terrain` and asserts [`axis_misses`] finds nothing.
-fn assert_within_targets_on_every_axis(terrain: TerrainChoice, cases: &[(&str, u64)]) {
+/// Runs each `(label, seed)` case under `setup` and asserts [`axis_misses`] finds nothing.
+fn assert_within_targets_on_every_axis(setup: &Setup, cases: &[(&str, u64)]) {
     let root = tempfile::tempdir().unwrap();
-    let setup = Setup {
-        terrain,
-        ..Setup::default()
-    };
     let mut bad = Vec::new();
     for &(label, seed) in cases {
-        let r = run_case(root.path(), label, seed, &[label], &setup);
-        let line = r.line(&format!("{label} ({terrain:?})"), seed);
+        let r = run_case(root.path(), label, seed, &[label], setup);
+        let line = r.line(
+            &format!(
+                "{label} ({:?}, {:?} captures)",
+                setup.terrain, setup.captures
+            ),
+            seed,
+        );
         println!("{line}");
         bad.extend(axis_misses(&r, label, seed, &line));
     }
@@ -434,13 +402,16 @@ fn assert_within_targets_on_every_axis(terrain: TerrainChoice, cases: &[(&str, u
 /// `dk1` within ±5 %, from mini's two capture locations. Seeds 101, 102 read a pose bias within
 /// 0.020°/0.3 mm and 0.028°/0.3 mm, `dk1` 2.8 and 0.5 % off (with the survey markers sampled
 /// 0.018°/0.3 mm, 0.029°/0.3 mm, 2.7 and 0.3 %; 103, 104: 0.007°/0.2 mm, 0.006°/0.1 mm, 0.0
-/// and 1.1 %), where the laser entry leaves the per-axis errors of
-/// [`POSE_BIAS_SIX_ROLL_TOL_DEG`]'s docs and `dk1` up to 23 % off: what limits those is the
-/// entry, not the fit (for the pose bias, its texture: see the next test).
+/// and 1.1 %), where the laser entry from these two locations leaves a pose bias's axes up to
+/// 0.31° and 7.9 mm off (seed 101) and `dk1` up to 27 % off (seeds 101–114): what limits
+/// those is the entry, not the fit (for the pose bias, its texture: see the next test).
 #[test]
 fn with_the_true_terrain_a_pose_bias_and_a_distortion_are_within_the_targets_on_every_axis() {
     assert_within_targets_on_every_axis(
-        TerrainChoice::Truth,
+        &Setup {
+            terrain: TerrainChoice::Truth,
+            ..Setup::default()
+        },
         &[
             ("pose-bias", 101),
             ("pose-bias", 102),
@@ -455,13 +426,17 @@ fn with_the_true_terrain_a_pose_bias_and_a_distortion_are_within_the_targets_on_
 /// locations, so the compiled geometry is good enough and what the workflow misses on the
 /// entry comes from its texture (laser reflectance: see the gap module). Seeds 101–104:
 /// worst axes −0.07°/−2.9 mm, +0.08°/+2.5 mm, +0.10°/+2.3 mm, −0.02°/+0.4 mm, where the entry
-/// with its texture reads (101, 102) −0.13°/−5.0 mm and +0.41°/+11.9 mm. A distortion is not
+/// with its texture reads (101, 102) −0.31°/+7.9 mm and +0.11°/−1.2 mm (with the stereo pairs
+/// alone, before the cross-capture pairs: −0.13°/−5.0 mm and +0.41°/+11.9 mm). A distortion is not
 /// separated so: `dk1` still reads −9.4 and −3.6 % off on 101, 102 (its valley with `dk2`
 /// depends on the heights too).
 #[test]
 fn with_the_entry_heights_and_the_true_albedo_a_pose_bias_is_within_the_targets_on_every_axis() {
     assert_within_targets_on_every_axis(
-        TerrainChoice::EntryHeightsTrueAlbedo,
+        &Setup {
+            terrain: TerrainChoice::EntryHeightsTrueAlbedo,
+            ..Setup::default()
+        },
         &[("pose-bias", 101), ("pose-bias", 102)],
     );
 }
