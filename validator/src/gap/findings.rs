@@ -144,10 +144,10 @@
 //! reported errors cover the axes' errors on 77 of 84. From six locations every axis is within
 //! the targets (seeds 101–104; worst −0.071°/−2.2 mm, −0.014°/+0.7 mm, +0.078°/−1.7 mm,
 //! −0.068°/−1.6 mm; `gap_hidden` asserts 101, 102), where before those pairs seed 102's pitch
-//! read 0.14° off (the survey markers kept out) and seed 103's 0.36–0.38° (above). A distortion's `dk1` is not
-//! helped the same way (seeds 101–107 +2.4, +1.8, +16.3, 0.0, −8.0, +26.8, +1.8 %; within 5 % on
-//! 5 of 14 over 101–114, where 3 of 7 on 101–107 were before): the trade-off with `dk2` sets the
-//! stopping point. Nothing hidden (101–107) still names nothing, and a hidden texture low-pass
+//! read 0.14° off (the survey markers kept out) and seed 103's 0.36–0.38° (above).
+//! A distortion's `dk1` is not helped the same way (seeds 101–107 +2.4, +1.8, +16.3, 0.0,
+//! −8.0, +26.8, +1.8 %; within 5 % on 5 of 14 over 101–114, where 3 of 7 on 101–107 were
+//! before): the trade-off with `dk2` sets the stopping point. Nothing hidden (101–107) still names nothing, and a hidden texture low-pass
 //! no geometric effect.
 //!
 //! # The estec preset
