@@ -326,7 +326,7 @@ const GEOMETRY_SHARE_FACTOR: f64 = 0.3;
 /// a hidden distortion of dk1 −0.047 by 0.118, a hidden pose bias of 0.4°/15 mm by 0.67.
 const GEOMETRY_MIN_ABS: f64 = 0.04;
 
-/// Share of the stereo pairs' residual (at zero increment) under which a distortion's fit
+/// Share of a group of pairs' residual (at zero increment) under which a distortion's fit
 /// counts as confirmed by them whatever its jackknife: hidden distortions on mini took it to
 /// 0.10–0.29 of its value (0.133 → 0.013, 0.063 → 0.018, 0.289 → 0.041; estec 0.187 → 0.017);
 /// a distortion fitted to a hidden texture low-pass raised it (0.015 → 0.135).
@@ -390,8 +390,8 @@ pub(crate) fn geometry_stage(
     //
     // The render's own fit comes first; the stereo pairs then join it ([`witnessed_fit`]), so
     // they steer the parameters where the texture biases the render's samples. And the
-    // correction must bring each capture's two real images closer through the terrain's
-    // geometry. One fitted to the entry's texture does not: with a texture low-pass hidden (mini seed 102) a distortion
+    // correction must bring the paired real images closer (every group: each capture's two,
+    // and those of different captures) through the terrain's geometry. One fitted to the entry's texture does not: with a texture low-pass hidden (mini seed 102) a distortion
     // fitted to the render raised the stereo residual from 0.015 to 0.135, where hidden
     // distortions lowered it (0.133 → 0.013 and 0.063 → 0.018 on seeds 101, 102).
     let lone_terms = || radial_terms(ctx, &levels, &set, one_term_cv);
