@@ -76,6 +76,9 @@ pub struct ViewImages {
     /// Band-passed, normalised real image (shared: the levels a fit is joined into clone the
     /// views, and on estec the cross-capture pairs' scaled band-passes run to gigabytes).
     pub real: Arc<[f32]>,
+    /// Standard deviation over the terrain of the real image's band-pass before it was scaled
+    /// to unit variance: what the scaled band-passes of [`cross_pairs`] are divided by too.
+    pub real_sd: f32,
 }
 
 /// One sampled render pixel.
@@ -149,13 +152,15 @@ fn terrain_sd(d: &[f32], mask: &[bool]) -> f32 {
     }
 }
 
-fn band_pass(v: &[f32], mask: &[bool], w: usize, h: usize, band: [f64; 2]) -> Vec<f32> {
+/// The difference of Gaussians `band` of `v` over `mask`, scaled to unit variance there, and
+/// the standard deviation it was divided by.
+fn band_pass(v: &[f32], mask: &[bool], w: usize, h: usize, band: [f64; 2]) -> (Vec<f32>, f32) {
     let mut d = difference_of_gaussians(v, mask, w, h, band);
     let sd = terrain_sd(&d, mask);
     for x in &mut d {
         *x /= sd;
     }
-    d
+    (d, sd)
 }
 
 /// Width (px) of the ramp that takes the real band-pass to 0 at the image border.
@@ -202,8 +207,8 @@ pub fn prepare(
     h: usize,
     band: [f64; 2],
 ) -> (ViewImages, Vec<Observation>) {
-    let rb = band_pass(render, mask, w, h, band);
-    let mut qb = band_pass(real, mask, w, h, band);
+    let (rb, _) = band_pass(render, mask, w, h, band);
+    let (mut qb, real_sd) = band_pass(real, mask, w, h, band);
     taper_border(&mut qb, w, h);
     let inner = erode(mask, w, h, 2);
     let mut obs = Vec::new();
@@ -233,6 +238,7 @@ pub fn prepare(
             width: w,
             height: h,
             real: qb.into(),
+            real_sd,
         },
         obs,
     )
@@ -322,7 +328,8 @@ const CROSS_MATES: usize = 2;
 /// as a residual between the two real images (as [`stereo_pairs`], each pair of views once),
 /// the other view's band-passed at `band` scaled by how much larger the terrain appears there
 /// (its focal length over its depth, against the sample's), in steps of an eighth
-/// octave. `real` are the views' real DN images and `mask` their terrain masks. Returns the
+/// octave. `real` are the views' real DN images and `mask` the terrain masks `views` were
+/// [`prepare`]d with. Returns the
 /// scaled band-passes the pairs use, to be appended to `views` (a pair's mate indexes them
 /// from `views.len()`), and the pairs.
 ///
@@ -379,16 +386,6 @@ pub fn cross_pairs(
     let mut used: Vec<(usize, i32)> = tagged.iter().map(|(_, t)| *t).collect();
     used.sort_unstable();
     used.dedup();
-    let sd: Vec<f32> = views
-        .par_iter()
-        .enumerate()
-        .map(|(b, v)| {
-            terrain_sd(
-                &difference_of_gaussians(real[b], mask[b], v.width, v.height, band),
-                mask[b],
-            )
-        })
-        .collect();
     let scaled: Vec<ViewImages> = used
         .par_iter()
         .map(|&(b, k)| {
@@ -402,7 +399,7 @@ pub fn cross_pairs(
                 [band[0] * s, band[1] * s],
             );
             for x in &mut d {
-                *x /= sd[b];
+                *x /= v.real_sd;
             }
             taper_border(&mut d, v.width, v.height);
             ViewImages {
@@ -412,6 +409,7 @@ pub fn cross_pairs(
                 width: v.width,
                 height: v.height,
                 real: d.into(),
+                real_sd: v.real_sd,
             }
         })
         .collect();
