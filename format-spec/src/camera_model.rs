@@ -109,6 +109,7 @@ impl CameraModel {
     }
 
     /// Applies distortion to normalised coordinates.
+    #[inline]
     pub fn distort(&self, x: f64, y: f64) -> (f64, f64) {
         let d = &self.distortion;
         let r2 = x * x + y * y;
@@ -120,6 +121,7 @@ impl CameraModel {
     }
 
     /// Normalised distorted coordinates to pixels.
+    #[inline]
     pub fn to_pixel(&self, xd: f64, yd: f64) -> [f64; 2] {
         [
             self.fx * xd + self.skew * yd + self.cx,
@@ -128,6 +130,7 @@ impl CameraModel {
     }
 
     /// Projects a camera-frame point (z forward) to a pixel; `None` behind the camera.
+    #[inline]
     pub fn project(&self, p: [f64; 3]) -> Option<[f64; 2]> {
         if p[2] <= 1e-12 {
             return None;

@@ -519,16 +519,17 @@ fn bicubic(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<f64> {
     if !(u >= 0.0 && v >= 0.0 && u <= (w - 1) as f64 && v <= (h - 1) as f64) || w < 2 || h < 2 {
         return None;
     }
-    let (x0, y0) = (u.floor().min((w - 2) as f64), v.floor().min((h - 2) as f64));
-    let (wx, wy) = (cubic_weights(u - x0), cubic_weights(v - y0));
-    let (x0, y0) = (x0 as isize, y0 as isize);
-    let clampi = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+    // The cell's corner (`as` truncates, which is the floor here: both are ≥ 0), and the four
+    // tap columns and rows around it, clamped at the border.
+    let (x0, y0) = ((u as usize).min(w - 2), (v as usize).min(h - 2));
+    let (wx, wy) = (cubic_weights(u - x0 as f64), cubic_weights(v - y0 as f64));
+    let cols: [usize; 4] = std::array::from_fn(|i| (x0 + i).saturating_sub(1).min(w - 1));
+    let rows: [usize; 4] = std::array::from_fn(|j| (y0 + j).saturating_sub(1).min(h - 1) * w);
     let mut acc = 0.0;
-    for (j, wyj) in wy.iter().enumerate() {
-        let row = clampi(y0 - 1 + j as isize, h) * w;
+    for (row, wyj) in rows.iter().zip(&wy) {
         let mut r = 0.0;
-        for (i, wxi) in wx.iter().enumerate() {
-            r += wxi * f64::from(img[row + clampi(x0 - 1 + i as isize, w)]);
+        for (col, wxi) in cols.iter().zip(&wx) {
+            r += wxi * f64::from(img[row + col]);
         }
         acc += wyj * r;
     }
@@ -567,13 +568,15 @@ pub fn residuals(obs: &[Observation], views: &[ViewImages], p: &[f64; 8], out: &
             .and_then(|q| bicubic(&v.real, v.width, v.height, q[0], q[1]))
             .unwrap_or(0.0)
     };
-    out.par_extend(obs.par_iter().map(|o| {
-        let other = match o.mate {
-            None => o.value,
-            Some((view, point)) => real_at(view, point),
-        };
-        o.weight * (real_at(o.view, o.point) - other)
-    }));
+    obs.par_iter()
+        .map(|o| {
+            let other = match o.mate {
+                None => o.value,
+                Some((view, point)) => real_at(view, point),
+            };
+            o.weight * (real_at(o.view, o.point) - other)
+        })
+        .collect_into_vec(out);
 }
 
 /// A fit of a subset.
