@@ -147,8 +147,25 @@
 //! read 0.14° off (the survey markers kept out) and seed 103's 0.36–0.38° (above).
 //! A distortion's `dk1` is not helped the same way (seeds 101–107 +2.4, +1.8, +16.3, 0.0,
 //! −8.0, +26.8, +1.8 %; within 5 % on 5 of 14 over 101–114, where 3 of 7 on 101–107 were
-//! before): the trade-off with `dk2` sets the stopping point. Nothing hidden (101–107) still names nothing, and a hidden texture low-pass
-//! no geometric effect.
+//! before): the trade-off with `dk2` sets the stopping point. Nothing hidden (101–107) still
+//! names nothing, and a hidden texture low-pass no geometric effect. Pairing each two views of
+//! different captures both ways (the samples of either view's grid, not only the lower one's)
+//! lost: seeds 101–104 had 13 axes off the targets against 5 (seed 103's six axes all but
+//! one).
+//!
+//! An exact Jacobian of the alignment residuals (the Catmull–Rom interpolant's gradient through
+//! the projection, the distortion and the bias; it matched central differences to 10⁻⁵) in
+//! place of the forward differences did not make the fits faster: estec seed 2's geometric
+//! stage took 667 s against 679, and its pose bias came out farther off (rotation about x
+//! 0.035° off against 0.012°). An exact Jacobian costs about a third of the six to eight
+//! residual evaluations a forward-difference one does, so the fits must have taken more
+//! iterations (not counted): the forward difference's step averages over a residual this
+//! rough, the exact gradient does not. It was not kept. Where a run's time goes (`perf`, mini
+//! seed 101, a pose bias: 17 s, 13 of them in the geometric stage): the alignment residuals
+//! 55 % (sampling and projecting), the renders 24 %. The Gaussian passes behind every
+//! band-pass had taken another 24 % before they summed a line at a time (bit-identical,
+//! `bench_blur`: 2.8–5.2× faster): that run 20.6 → 17.2 s, estec seed 2's pose bias 776 →
+//! 734 s (geometric stage 670 → 647 s, texture 21 → 8 s), every figure the same.
 //!
 //! # The estec preset
 //!

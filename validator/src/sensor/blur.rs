@@ -66,9 +66,15 @@ fn accumulate<'a, T: 'a>(
     }
 }
 
-/// Normalised weights for offsets `-radius..=radius`; the radius never exceeds `max_len`.
+/// The kernel's radius for `sigma` on a raster whose longer side is `max_len`: `ceil(3 sigma)`,
+/// at least 1 and at most `max_len`.
+pub fn kernel_radius(sigma: f64, max_len: usize) -> usize {
+    ((3.0 * sigma).ceil() as usize).clamp(1, max_len.max(1))
+}
+
+/// Normalised weights for offsets `-radius..=radius` ([`kernel_radius`]).
 fn kernel(sigma: f64, max_len: usize) -> Vec<f64> {
-    let radius = ((3.0 * sigma).ceil() as usize).clamp(1, max_len.max(1));
+    let radius = kernel_radius(sigma, max_len);
     let raw: Vec<f64> = (0..=2 * radius)
         .map(|i| {
             let x = i as f64 - radius as f64;

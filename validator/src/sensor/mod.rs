@@ -28,7 +28,7 @@ use regolith_format::frames::{quat_from_axis_angle, Pose};
 
 use crate::render::{AlbedoGrid, Geometry, Light, RenderOptions};
 
-pub use blur::gaussian_blur;
+pub use blur::{gaussian_blur, kernel_radius};
 pub use effects::{
     distortion_shift, level_change_dn, ParamRange, MIN_DISTORTION_SHIFT, MIN_LEVEL_CHANGE_DN,
 };
