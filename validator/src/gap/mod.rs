@@ -408,7 +408,7 @@ fn run_steps(
     steps.step();
     candidates.insert(
         "geometry".to_string(),
-        geometry_stage(&ctx, &mut model, opts.min_share, &mut found),
+        geometry_stage(&ctx, &mut model, &preds_before, opts.min_share, &mut found),
     );
     steps.step();
     blur_stage(&ctx, &mut model, opts.min_share, &mut found);

@@ -345,15 +345,16 @@ pub(crate) fn alignment_residual(levels: &Levels) -> f64 {
         .map_or(0.0, |(imgs, obs)| geometry::mse(obs, imgs, &[0.0; 8]))
 }
 
-/// Stage 1: geometry. Returns the scored candidates and updates `model`.
+/// Stage 1: geometry, from `preds`, the renders of `model`. Returns the scored candidates and
+/// updates `model`.
 pub(crate) fn geometry_stage(
     ctx: &Ctx<'_>,
     model: &mut SensorModel,
+    preds: &[Prediction],
     min_share: f64,
     out: &mut Vec<Named>,
 ) -> Vec<ScoredCandidate> {
-    let preds = ctx.predict_all(model);
-    let levels = geometry_levels(ctx, model, &preds);
+    let levels = geometry_levels(ctx, model, preds);
     let Some((_, fine_obs)) = levels.last() else {
         return Vec::new();
     };
@@ -395,7 +396,7 @@ pub(crate) fn geometry_stage(
     // fitted to the render raised the stereo residual from 0.015 to 0.135, where hidden
     // distortions lowered it (0.133 → 0.013 and 0.063 → 0.018 on seeds 101, 102).
     let lone_terms = || radial_terms(ctx, &levels, &set, one_term_cv);
-    let (f, terms, witness) = witnessed_fit(ctx, model, &preds, &levels, &set, &lone_terms);
+    let (f, terms, witness) = witnessed_fit(ctx, model, preds, &levels, &set, &lone_terms);
     if witness.as_ref().is_some_and(|w| !w.agrees()) {
         return scored(&cands);
     }
@@ -469,7 +470,7 @@ pub(crate) fn geometry_stage(
     // effects lowered it (distortion 16.04 → 15.95, pose-bias 15.43 → 13.92 and 19.51 → 16.31).
     // The RMS is taken after a gain and offset per view (see `photometric_rms_pair`).
     let corrected = ctx.predict_all(&current);
-    let (rms_before, rms_after) = photometric_rms_pair(ctx, &preds, &corrected);
+    let (rms_before, rms_after) = photometric_rms_pair(ctx, preds, &corrected);
     if rms_after >= rms_before {
         return scored(&cands);
     }
