@@ -110,6 +110,9 @@ pub(crate) struct Ctx<'a> {
     pub(crate) supersample: u32,
     /// Ground-frame survey markers, kept out of the geometric fit ([`markers`]).
     pub(crate) markers: Vec<[f64; 3]>,
+    /// The last renders of [`Ctx::predict_all`] and the model they are of: a stage that
+    /// changes nothing leaves the next one the model it rendered last.
+    last: std::sync::Mutex<Option<(SensorModel, Vec<Prediction>)>>,
 }
 
 impl<'a> Ctx<'a> {
@@ -132,6 +135,7 @@ impl<'a> Ctx<'a> {
             n_folds,
             supersample: opts.supersample.max(1),
             markers: markers::survey_markers(view)?,
+            last: std::sync::Mutex::new(None),
         })
     }
 
@@ -218,8 +222,19 @@ impl<'a> Ctx<'a> {
             .collect()
     }
 
+    /// The renders of every view through `model` (the last ones again when `model` is theirs:
+    /// a render depends on nothing else).
     pub(crate) fn predict_all(&self, model: &SensorModel) -> Vec<Prediction> {
-        self.predict_sampled(model, self.supersample)
+        let mut last = self
+            .last
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((_, preds)) = last.as_ref().filter(|(m, _)| m == model) {
+            return preds.clone();
+        }
+        let preds = self.predict_sampled(model, self.supersample);
+        *last = Some((model.clone(), preds.clone()));
+        preds
     }
 
     pub(crate) fn predict_sampled(&self, model: &SensorModel, supersample: u32) -> Vec<Prediction> {
