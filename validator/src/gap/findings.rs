@@ -151,7 +151,9 @@
 //! names nothing, and a hidden texture low-pass no geometric effect. Pairing each two views of
 //! different captures both ways (the samples of either view's grid, not only the lower one's)
 //! lost: seeds 101–104 had 13 axes off the targets against 5 (seed 103's six axes all but
-//! one).
+//! one). Nor does scaling the cross-capture pairs' inverse-variance weight help: doubled,
+//! seeds 101–106 had 19 axes off against 5 (seed 103's bias no longer named); halved, seeds
+//! 101–107 had 12 off against 5.
 //!
 //! An exact Jacobian of the alignment residuals (the Catmull–Rom interpolant's gradient through
 //! the projection, the distortion and the bias; it matched central differences to 10⁻⁵) in
@@ -164,8 +166,10 @@
 //! seed 101, a pose bias: 17 s, 13 of them in the geometric stage): the alignment residuals
 //! 55 % (sampling and projecting), the renders 24 %. The Gaussian passes behind every
 //! band-pass had taken another 24 % before they summed a line at a time (bit-identical,
-//! `bench_blur`: 2.8–5.2× faster): that run 20.6 → 17.2 s, estec seed 2's pose bias 776 →
-//! 734 s (geometric stage 670 → 647 s, texture 21 → 8 s), every figure the same.
+//! `bench_blur`: 2.8–5.2× faster), and a stage rendered again a model the one before had
+//! rendered (now handed back): that run 20.6 → 17.2 → 15.4 s, estec seed
+//! 2's pose bias 776 → 734 → 669 s (geometric stage 670 → 647 → 608 s, photometric 20 → 6 s,
+//! texture 21 → 8 s, the final measurement 23 → 9 s), every figure the same.
 //!
 //! # The estec preset
 //!
