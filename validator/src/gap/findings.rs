@@ -169,7 +169,8 @@
 //! `bench_blur`: 2.8–5.2× faster), and a stage rendered again a model the one before had
 //! rendered (now handed back): that run 20.6 → 17.2 → 15.4 s, estec seed
 //! 2's pose bias 776 → 734 → 669 s (geometric stage 670 → 647 → 608 s, photometric 20 → 6 s,
-//! texture 21 → 8 s, the final measurement 23 → 9 s), every figure the same.
+//! texture 21 → 8 s, the final measurement 23 → 9 s), with nothing hidden 264 → 201 s (peak
+//! memory 3.0 → 3.3 GB: the kept renders), every figure the same.
 //!
 //! # The estec preset
 //!
