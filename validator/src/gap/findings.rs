@@ -161,7 +161,12 @@
 //! 0.2163 against 0.2413); on seed 109 the cross-capture pairs prefer the truth (0.2430 against
 //! 0.2487), the others the fit; on seed 104, within the targets, all three differ by under
 //! 1 %. What pulls them alike is what they share: the points, from the entry's heights
-//! through the render's depth, and (for the cross-capture pairs) the scale matching.
+//! through the render's depth, and (for the cross-capture pairs) the scale matching. The
+//! heights carry part of it: under the true albedo (the entry's heights kept) every witness
+//! still prefers the first pass's fit to the truth (seed 112: 0.3248 / 0.0291 / 0.1344 against
+//! 0.3375 / 0.0301 / 0.1368; 101: 0.3099 / 0.0080 / 0.2286 against 0.3173 / 0.0087 /
+//! 0.2413), though there the refined bias lands within the targets (112: 0.058° off about y
+//! and z; 101: 0.061° about z).
 //!
 //! An exact Jacobian of the alignment residuals (the Catmull–Rom interpolant's gradient through
 //! the projection, the distortion and the bias; it matched central differences to 10⁻⁵) in
