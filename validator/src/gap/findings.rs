@@ -153,20 +153,19 @@
 //! lost: seeds 101–104 had 13 axes off the targets against 5 (seed 103's six axes all but
 //! one). Nor does scaling the cross-capture pairs' inverse-variance weight help: doubled,
 //! seeds 101–106 had 19 axes off against 5 (seed 103's bias no longer named); halved, seeds
-//! 101–107 had 12 off against 5. The residuals at the hidden bias say why (first pass, mean
-//! squares of the render's samples / stereo pairs / cross-capture pairs): on seed 112 the fit
-//! has 1.1854 / 0.0287 / 0.1303 and the truth 1.2121 / 0.0301 / 0.1368 — every witness
-//! prefers the fit, so no weighting of them reaches the truth; on seed 101 the render prefers
-//! the truth (0.9741 against 0.9998) and both groups of pairs the fit (0.0078 against 0.0087,
-//! 0.2163 against 0.2413); on seed 109 the cross-capture pairs prefer the truth (0.2430 against
-//! 0.2487), the others the fit; on seed 104, within the targets, all three differ by under
-//! 1 %. What pulls them alike is what they share: the points, from the entry's heights
-//! through the render's depth, and (for the cross-capture pairs) the scale matching. The
-//! heights carry part of it: under the true albedo (the entry's heights kept) every witness
-//! still prefers the first pass's fit to the truth (seed 112: 0.3248 / 0.0291 / 0.1344 against
-//! 0.3375 / 0.0301 / 0.1368; 101: 0.3099 / 0.0080 / 0.2286 against 0.3173 / 0.0087 /
-//! 0.2413), though there the refined bias lands within the targets (112: 0.058° off about y
-//! and z; 101: 0.061° about z).
+//! 101–107 had 12 off against 5. The residuals at the hidden bias, on the first pass (mean
+//! squares of the stereo / cross-capture pairs, each run against its own joint fit), show
+//! that the pairs' own minimum lies off the truth: they prefer the fit on the laser entry by
+//! 5–12 % (seed 112: 0.0287 / 0.1303 at the fit, 0.0301 / 0.1368 at the truth; 101: 0.0078 /
+//! 0.2163 against 0.0087 / 0.2413; seed 109's cross-capture pairs and seed 104's, on target,
+//! within 1 %), under the true albedo on the entry's heights by 2–9 % (112: 0.0291 / 0.1344;
+//! 101: 0.0080 / 0.2286), on the true terrain by 0.4–1.4 % (112: 0.0279 / 0.1248 against
+//! 0.0280 / 0.1254; 101: 0.0069 against 0.0070) but for seed 101's cross-capture pairs (0.1802
+//! against 0.1937). What pulls them is what they share with the render: the points, placed by
+//! the depth of the render at the uncorrected pose — its heights (the entry's smooth more
+//! than the truth) and its occlusions (which the render's samples cannot follow either: on the
+//! true terrain they prefer the first pass's fit too, 0.1172 against 0.1388 on seed 112,
+//! which is why the bias is refined from a corrected render).
 //!
 //! An exact Jacobian of the alignment residuals (the Catmull–Rom interpolant's gradient through
 //! the projection, the distortion and the bias; it matched central differences to 10⁻⁵) in
