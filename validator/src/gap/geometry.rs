@@ -329,9 +329,8 @@ const CROSS_MATES: usize = 2;
 /// the other view's band-passed at `band` scaled by how much larger the terrain appears there
 /// (its focal length over its depth, against the sample's), in steps of an eighth
 /// octave. `real` are the views' real DN images and `mask` the terrain masks `views` were
-/// [`prepare`]d with. Returns the
-/// scaled band-passes the pairs use, to be appended to `views` (a pair's mate indexes them
-/// from `views.len()`), and the pairs.
+/// [`prepare`]d with. Returns the scaled band-passes the pairs use, to be appended to `views`
+/// (a pair's mate indexes them from `views.len()`), and the pairs.
 ///
 /// Why: the two cameras of one capture move together under a pose bias, so their pairs see
 /// it only through the depth it changes; views of different captures see a bias fixed to the
@@ -516,7 +515,7 @@ fn cubic_weights(t: f64) -> [f64; 4] {
 /// bilinear interpolation the kinks at every pixel border made them rough at the 0.01 px scale
 /// and stopped the fit early); the taps are clamped at the image border. `None` outside.
 fn bicubic(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<f64> {
-    if !(u >= 0.0 && v >= 0.0 && u <= (w - 1) as f64 && v <= (h - 1) as f64) || w < 2 || h < 2 {
+    if w < 2 || h < 2 || !(u >= 0.0 && v >= 0.0 && u <= (w - 1) as f64 && v <= (h - 1) as f64) {
         return None;
     }
     // The cell's corner (`as` truncates, which is the floor here: both are ≥ 0), and the four
