@@ -170,7 +170,7 @@ fn ground_control(
     }
     let report = json!(stats
         .iter()
-        .map(|m| json!({"marker": m.name, "mean_m": m.mean, "std_m": m.std, "rms_3d_m": m.rms_3d, "frames": m.frames}))
+        .map(|m| json!({"marker": m.name, "mean_m": m.mean, "std_m": m.std, "rms_3d_m": m.rms_3d, "frames": m.frames, "radius_m": c.marker_radius_m}))
         .collect::<Vec<_>>());
     Ok((
         stats

@@ -123,20 +123,97 @@ fn compile_mini_meets_accuracy_against_truth() {
         );
     }
 
-    // The survey markers the gap workflow keeps out of its geometric fit: every true ball, from
-    // the report's Vicon means, within 1 mm of its centre.
+    // The survey markers the gap workflow keeps out of its dense alignment and sights as
+    // ground control: every true ball, from the report's Vicon means, within 1 mm of its centre,
+    // with its radius.
     let balls = json(&camp.join("truth/markers.json"));
     let found = regolith_validator::gap::markers::survey_markers(&release).unwrap();
     let balls = balls.as_array().unwrap();
     assert_eq!(found.len(), balls.len());
     for b in balls {
         let c: Vec<f64> = (0..3).map(|k| b["centre_m"][k].as_f64().unwrap()).collect();
-        let d = found
+        let (d, nearest) = found
             .iter()
-            .map(|f| (0..3).map(|k| (f[k] - c[k]).powi(2)).sum::<f64>().sqrt())
-            .fold(f64::INFINITY, f64::min);
+            .map(|f| {
+                let d = (0..3)
+                    .map(|k| (f.centre_m[k] - c[k]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                (d, f)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .unwrap();
         assert!(d < 1e-3, "marker {}: nearest found {d} m away", b["name"]);
+        assert_eq!(
+            nearest.radius_m,
+            b["radius_m"].as_f64(),
+            "marker {}",
+            b["name"]
+        );
     }
+
+    // Those balls, sighted in the real frames from the true camera poses: where each true
+    // centre projects, within 0.25 px RMS per axis (the gap's ground control points).
+    let captures = json(&camp.join("truth/captures.json"));
+    let cameras = json(&camp.join("truth/cameras.json"));
+    let light: regolith_validator::render::Light =
+        serde_json::from_value(json(&camp.join("truth/lighting.json"))).unwrap();
+    let (mut sq, mut n) = ([0.0f64; 2], 0usize);
+    for c in captures.as_array().unwrap() {
+        for side in ["left", "right"] {
+            let pose: Pose = serde_json::from_value(c[side]["ground_from_camera"].clone()).unwrap();
+            let camera: regolith_format::camera_model::CameraModel = serde_json::from_value(
+                cameras["cameras"][format!("navcam_{side}")]["true"].clone(),
+            )
+            .unwrap();
+            let frames: Vec<image::GrayImage> = c[side]["files"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|f| {
+                    image::open(camp.join(f.as_str().unwrap()))
+                        .unwrap()
+                        .to_luma8()
+                })
+                .collect();
+            let (w, h) = (frames[0].width() as usize, frames[0].height() as usize);
+            let mean: Vec<f32> = (0..w * h)
+                .map(|i| {
+                    frames.iter().map(|f| f32::from(f.as_raw()[i])).sum::<f32>()
+                        / frames.len() as f32
+                })
+                .collect();
+            for m in &found {
+                let Some(s) = regolith_validator::gap::markers::sight(
+                    &mean,
+                    w,
+                    h,
+                    &camera,
+                    &pose,
+                    m.centre_m,
+                    m.radius_m.unwrap(),
+                    &light,
+                ) else {
+                    continue;
+                };
+                if s.contrast_dn < 40.0 {
+                    continue;
+                }
+                let p = camera
+                    .project(pose.inverse().transform_point(m.centre_m))
+                    .unwrap();
+                sq[0] += (s.pixel[0] - p[0]).powi(2);
+                sq[1] += (s.pixel[1] - p[1]).powi(2);
+                n += 1;
+            }
+        }
+    }
+    let rms = sq.map(|s| (s / n.max(1) as f64).sqrt());
+    assert!(n >= 8, "{n} balls sighted");
+    assert!(
+        rms[0] < 0.25 && rms[1] < 0.25,
+        "sightings {rms:?} px RMS off ({n})"
+    );
 
     // DEM: height RMS vs the true surface ≤ 6 mm over valid cells, and no cell off by 5 cm
     // away from the marker balls (near-vertical faces of the domes).

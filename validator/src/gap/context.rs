@@ -109,7 +109,7 @@ pub(crate) struct Ctx<'a> {
     pub(crate) n_folds: usize,
     pub(crate) supersample: u32,
     /// Ground-frame survey markers, kept out of the geometric fit ([`markers`]).
-    pub(crate) markers: Vec<[f64; 3]>,
+    pub(crate) markers: Vec<markers::SurveyMarker>,
     /// The last renders of [`Ctx::predict_all`] and the model they are of: a stage that
     /// changes nothing leaves the next one the model it rendered last.
     last: std::sync::Mutex<Option<(SensorModel, Vec<Prediction>)>>,
