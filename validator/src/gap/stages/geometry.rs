@@ -129,8 +129,34 @@ const MARKER_MIN_CONTRAST_DN: f64 = 40.0;
 /// Largest RMS residual of a sighting's ball model, as a share of its contrast.
 const MARKER_MAX_RMS: f64 = 0.1;
 
-/// Sightings that fix a pose bias's six axes by themselves (two residuals each).
-const MARKERS_FOR_POSE: usize = 3;
+/// Sightings that fix a pose bias's six axes by themselves with residuals to spare (two
+/// residuals each).
+const MARKERS_FOR_POSE: usize = 4;
+
+/// Scatter of a sighting about where the true pose projects its ball's centre, px (mini seed
+/// 11: 0.17 and 0.14 px RMS in x and y over sixteen balls; see [`markers`]).
+const SIGHTING_SD_PX: f64 = 0.16;
+
+/// Standard errors of `set`'s parameters from the `sighted` markers alone, at the joint fit
+/// `p`: their own least squares, scaled by their residual or by [`SIGHTING_SD_PX`], whichever
+/// is larger (a handful of sightings can fit their own noise). `None` when they do not
+/// determine every parameter.
+fn sighting_std_err(
+    sighted: &[geometry::Observation],
+    imgs: &[geometry::ViewImages],
+    set: &[&str],
+    terms: usize,
+    p: &[f64; 8],
+) -> Option<[f64; 8]> {
+    let own = geometry::fit(sighted, imgs, set, terms, p);
+    let free = geometry::free(set, terms);
+    if free.iter().any(|&i| !own.std_err[i].is_finite()) {
+        return None;
+    }
+    let floor = SIGHTING_SD_PX * MARKER_WEIGHT;
+    let scale = (floor / own.mse.sqrt().max(1e-12)).max(1.0);
+    Some(own.std_err.map(|e| e * scale))
+}
 
 /// The survey markers of known radius sighted in the real views ([`markers::sight`]) from
 /// `model`'s poses through the cameras of `preds`: two observations each (the centre's x and
@@ -236,6 +262,9 @@ pub(crate) struct MarkerFigures {
     pub(crate) before_px: f64,
     /// RMS distance at the joint fit, px.
     pub(crate) after_px: f64,
+    /// Standard errors of the parameters from the sightings alone (their own least squares at
+    /// the joint fit, scaled by their own residual), when they are enough to fix them.
+    pub(crate) std_err: Option<[f64; 8]>,
 }
 
 /// A geometric fit joined by the pairs.
@@ -386,6 +415,9 @@ pub(crate) fn witnessed_fit(
             sightings: sighted.len() / 2,
             before_px: sighting_rms(&[0.0; 8]),
             after_px: sighting_rms(&f.params),
+            std_err: (sighted.len() / 2 >= MARKERS_FOR_POSE)
+                .then(|| sighting_std_err(&sighted, imgs, set, terms, &f.params))
+                .flatten(),
         }),
         levels: both,
         render_only,
@@ -516,12 +548,15 @@ pub(crate) fn geometry_stage(
     }
     let mut current = with_geometry(model, &set, &f.params);
     let mut std_err_fit = f.std_err;
+    let mut sightings = witness.as_ref().and_then(|w| w.markers);
     if set.contains(&"pose-bias") {
         let seen = ctx.predict_all(&current);
         let seen_levels = geometry_levels(ctx, &current, &seen);
-        let (refine, _, _) = witnessed_fit(ctx, &current, &seen, &seen_levels, &set, &|| terms);
+        let (refine, _, refined) =
+            witnessed_fit(ctx, &current, &seen, &seen_levels, &set, &|| terms);
         current = with_geometry(&current, &set, &refine.params);
         std_err_fit = refine.std_err;
+        sightings = refined.and_then(|w| w.markers).or(sightings);
     }
 
     let joint = witness.as_ref().map_or(&levels, |w| &w.levels);
@@ -567,15 +602,23 @@ pub(crate) fn geometry_stage(
     // enough survey markers were sighted to fix the six axes on their own: they, not the pairs,
     // then hold the fit against the texture, and the distance the texture pulled the render's
     // own fit is no longer the joint fit's error (mini seeds 101–114: 0.08–0.36° reported for
-    // errors under 0.1°).
-    let markers_hold = witness
-        .as_ref()
-        .and_then(|w| w.markers)
-        .is_some_and(|m| m.sightings >= MARKERS_FOR_POSE);
-    if let Some(w) = witness.as_ref().filter(|_| !markers_hold) {
-        for ((e, r), p) in std_err.iter_mut().zip(w.render_only).zip(f.params).skip(2) {
-            *e = e.hypot(r - p);
+    // errors under 0.1°). Their own scatter, propagated, is added instead: the least squares
+    // weighs them far above their 0.15 px, and the jackknife over two captures swings (mini
+    // seeds 101–114: 0.001–0.38° for errors under 0.09°); with it twice the reported errors
+    // cover all 84 axes (64 without it).
+    let marker_err = sightings.and_then(|m| m.std_err);
+    match (&witness, marker_err) {
+        (_, Some(m)) => {
+            for (e, s) in std_err.iter_mut().zip(m) {
+                *e = e.hypot(s);
+            }
         }
+        (Some(w), None) => {
+            for ((e, r), p) in std_err.iter_mut().zip(w.render_only).zip(f.params).skip(2) {
+                *e = e.hypot(r - p);
+            }
+        }
+        (None, None) => {}
     }
     // The distortion's terms carry the same shared pull, which the witnesses cannot scale
     // (above): it is measured instead, over calibration campaigns ([`geometry::CALIBRATION_DK`]).
