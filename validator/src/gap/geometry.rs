@@ -39,7 +39,8 @@
 //! on the three worst seeds (`tools/gap/weak_plane.py`). The survey
 //! markers close it: each ball sighted in a real image ([`super::markers::sight`]) is a ground
 //! control point whose residual is its centre's projection minus the sighting (pixels,
-//! `target`); with them 82 of the 84 axes are within the targets.
+//! `target`); with them all 84 axes are within the targets (they join a pose bias's fit, not
+//! a distortion's: see the geometry stage).
 //!
 //! The fit is Levenberg–Marquardt over all views jointly (the effects are fixed to the camera,
 //! so they are the same in every capture), coarse to fine (band σ 3–12 px, then 1.5–8 px), the

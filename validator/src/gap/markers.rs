@@ -123,6 +123,8 @@ pub struct Sighting {
     pub rms_dn: f64,
     /// The fitted brightness of the ball's fully lit surface above the background, DN.
     pub contrast_dn: f64,
+    /// The ball's radius in the image, px.
+    pub radius_px: f64,
 }
 
 /// Unit vector.
@@ -344,6 +346,7 @@ pub fn sight(
         pixel: camera.project(moved(a, b))?,
         rms_dn: rms,
         contrast_dn: g - bg,
+        radius_px: rp,
     })
 }
 
