@@ -534,7 +534,7 @@ mod tests {
     fn a_ball_too_near_the_border_is_not_sighted() {
         let (camera, pose, centre, light) = scene();
         let img = ball_image(&camera, &pose, centre, &light, true);
-        // The same image read as if it were 40 px narrower: the ball's window crosses it.
+        // The same image cut 5 px right of the ball's centre: its window crosses the border.
         let truth = camera
             .project(pose.inverse().transform_point(centre))
             .unwrap();

@@ -354,10 +354,10 @@ impl Witness {
 /// Fits `set` on `levels` (made from `preds`, the renders of `model`): the render's own fit,
 /// then, where the views hold pairs (the stereo pairs of a capture, the cross-capture pairs of
 /// [`geometry::cross_pairs`]), the joint fit with them (which they must confirm) and with the
-/// survey markers' sightings when `set` is a pose bias alone ([`marker_observations`]; a lone camera's fit too). Each group
-/// is weighted by the ratio of its residual's standard deviation to the render's
-/// (inverse-variance weighting), taken at the render's own fit and then again at the joint
-/// fit, which is fitted once more with them: at the render's fit the pairs' residual still
+/// survey markers' sightings when `set` is a pose bias alone ([`marker_observations`]; a lone
+/// camera's fit too). Each group is weighted by the ratio of its residual's standard deviation
+/// to the render's (inverse-variance weighting), taken at the render's own fit and then again
+/// at the joint fit, which is fitted once more with them: at the render's fit the pairs' residual still
 /// holds the texture's pull they are there to undo (cross-capture pairs on mini seeds
 /// 101–107: 0.17–0.81 there, 0.04–0.44 at the refined pose; weighted at the render's fit
 /// alone, a hidden pose bias's axes came out within the targets on 35 of 42, against 37
