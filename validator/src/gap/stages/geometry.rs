@@ -294,8 +294,8 @@ pub(crate) struct MarkerFigures {
     pub(crate) before_px: f64,
     /// RMS distance at the joint fit, px.
     pub(crate) after_px: f64,
-    /// Standard errors of the parameters from the sightings alone (their own least squares at
-    /// the joint fit, scaled by their own residual), when they are enough to fix them.
+    /// Standard errors of the parameters from the sightings alone ([`sighting_std_err`]), when
+    /// there are enough of them to fix the parameters.
     pub(crate) std_err: Option<[f64; 8]>,
 }
 
