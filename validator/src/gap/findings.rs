@@ -268,9 +268,9 @@
 //! # A lone camera
 //!
 //! Through one camera alone (`gap --cameras navcam_left`, as for a rover with one NavCam: no stereo
-//! pairs, the radial terms chosen on the held-out render residual, the camera its own rig frame)
-//! seeds 101, 102 read a distortion's displacement −7.0 and −16.2 % off (dk1 −8.1 and −14.7 %, one
-//! term chosen), a pose bias's displacement 3.1 and 6.3 mm off, and nothing hidden named nothing
+//! pairs, its two captures paired with each other, the camera its own rig frame)
+//! seeds 101, 102 read a distortion's displacement −7.9 and −3.7 % off (dk1 −14.8 and +0.5 %,
+//! both terms), a pose bias's displacement 3.1 and 6.3 mm off, and nothing hidden named nothing
 //! (asserted by `gap_hidden`). Over seeds 101–107 every case is named right, but without the pairs
 //! the texture pulls the distortion again (displacement −15.0 to +39.4 % off) and the roll is
 //! looser (up to 0.27° off; displacement 2.6–6.4 mm).

@@ -753,9 +753,15 @@ pub(crate) fn geometry_stage(
         (None, None) => {}
     }
     // The distortion's terms carry the same shared pull, which the witnesses cannot scale
-    // (above): it is measured instead, over calibration campaigns ([`geometry::CALIBRATION_DK`]).
+    // (above): it is measured instead, over calibration campaigns ([`geometry::CALIBRATION_DK`],
+    // smaller where the survey markers' sightings joined the fit).
     if set.contains(&"distortion") {
-        for (e, c) in std_err.iter_mut().zip(geometry::CALIBRATION_DK) {
+        let calibration = if sightings.is_some() {
+            geometry::CALIBRATION_DK_SIGHTED
+        } else {
+            geometry::CALIBRATION_DK
+        };
+        for (e, c) in std_err.iter_mut().zip(calibration) {
             *e = e.hypot(c);
         }
     }
