@@ -446,14 +446,15 @@ pub(crate) fn witnessed_fit(
     // sighting far from where that fit puts its ball (a ball hidden in part, or a brighter
     // thing beside it).
     let sighted_fit = |base: &Levels,
-                       f: geometry::GeometryFit,
+                       mut f: geometry::GeometryFit,
                        sighted: &mut Vec<geometry::Observation>,
                        terms: usize,
                        stereo: bool| {
-        let mut f = f;
-        let imgs = match base.last() {
-            Some((imgs, _)) => imgs,
-            None => return (f, base.clone()),
+        let Some((imgs, _)) = base.last() else {
+            return (f, base.clone());
+        };
+        let refit = |s: &[geometry::Observation]| {
+            fit_levels(&with_markers(base.clone(), s), set, terms, &|_, _| true)
         };
         if distorted && stereo {
             *sighted = marker_observations(
@@ -464,9 +465,7 @@ pub(crate) fn witnessed_fit(
                 marker_weight(render_mse(&f.params)),
             );
             if !sighted.is_empty() {
-                f = fit_levels(&with_markers(base.clone(), sighted), set, terms, &|_, _| {
-                    true
-                });
+                f = refit(sighted);
             }
         }
         let far = far_sightings(sighted, imgs, &f.params);
@@ -476,9 +475,7 @@ pub(crate) fn witnessed_fit(
                 k += 1;
                 !far[(k - 1) / 2]
             });
-            f = fit_levels(&with_markers(base.clone(), sighted), set, terms, &|_, _| {
-                true
-            });
+            f = refit(sighted);
         }
         (f, with_markers(base.clone(), sighted))
     };
