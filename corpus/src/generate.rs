@@ -9,7 +9,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use rand::Rng;
-use regolith_validator::render::{Geometry, HeightfieldTracer, Light, Scene};
+use regolith_validator::render::{Geometry, HeightfieldTracer, Light, Scene, Sphere};
 use regolith_validator::sensor::SensorModel;
 
 use crate::campaign::{self, CampaignPlan};
@@ -18,6 +18,7 @@ use crate::instruments::{bouguet, e57, las, navcam, opencv, ply, riegl, sfm, vic
 use crate::presets::{Preset, PresetConfig};
 use crate::seeding::{stage_hash, stage_rng};
 use crate::sink::Sink;
+use crate::terrain::materials::MARKER_ALBEDO;
 use crate::terrain::Terrain;
 use crate::truth::{self, CaptureTruth, ScanTruth};
 use crate::CorpusError;
@@ -315,7 +316,18 @@ fn write_captures(
         grid: terrain.height.clone(),
         albedo: terrain.albedo.clone(),
     };
-    let scene = Scene::new(&geometry);
+    // The balls are exact spheres in the captures (their caps in the grid lie inside them),
+    // so a ball is seen where a real one would be, see `Sphere`.
+    let balls = terrain
+        .markers
+        .iter()
+        .map(|m| Sphere {
+            centre: m.centre_m,
+            radius: m.radius_m,
+            albedo: MARKER_ALBEDO as f32,
+        })
+        .collect();
+    let scene = Scene::new(&geometry).with_spheres(balls);
     let model = effects::real_model(hidden);
     let mut out = Vec::new();
     for (i, cap) in poses.iter().enumerate() {

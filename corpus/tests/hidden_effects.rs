@@ -10,7 +10,8 @@ use std::path::Path;
 use common::*;
 use regolith_corpus::instruments::riegl::marker_visible;
 use regolith_corpus::terrain::TrueMarker;
-use regolith_validator::render::HeightfieldTracer;
+use regolith_validator::gap::markers::sight;
+use regolith_validator::render::{HeightfieldTracer, Light};
 use regolith_validator::sensor::image::vignetting_factor;
 
 fn frame(dir: &Path, cap: usize, side: &str, k: usize) -> (usize, usize, Vec<f32>) {
@@ -222,8 +223,9 @@ fn default_shadows_draw_a_low_light_and_move_the_lab_light_there() {
     );
 }
 
-/// Blob check for every visible marker: near the true projection, and for geometric effects
-/// away from where the calibrated (nominal) model puts it.
+/// Every visible marker, sighted in the left frame (`markers::sight`, the gap workflow's
+/// Lambertian sphere under the true light): within half a pixel of the true projection of its
+/// centre, and for geometric effects away from where the calibrated (nominal) model puts it.
 fn check_markers(dir: &Path, nominal_pose: bool) -> (usize, usize) {
     let tracer = HeightfieldTracer::new(&height_grid(dir));
     let markers: Vec<TrueMarker> = json(dir, "truth/markers.json")
@@ -238,13 +240,14 @@ fn check_markers(dir: &Path, nominal_pose: bool) -> (usize, usize) {
         .collect();
     let true_cam = camera(dir, "navcam_left", "true");
     let cal_cam = camera(dir, "navcam_left", "calibrated");
+    let lighting = json(dir, "truth/lighting.json");
+    let light = Light {
+        azimuth_deg: lighting["azimuth_deg"].as_f64().unwrap(),
+        elevation_deg: lighting["elevation_deg"].as_f64().unwrap(),
+        ambient: lighting["ambient"].as_f64().unwrap(),
+    };
     let (mut checked, mut displaced) = (0, 0);
-    for (i, c) in json(dir, "truth/captures.json")
-        .as_array()
-        .unwrap()
-        .iter()
-        .enumerate()
-    {
+    for c in json(dir, "truth/captures.json").as_array().unwrap() {
         let true_pose = pose(&c["left"]["ground_from_camera"]);
         let nominal = if nominal_pose {
             pose(&c["ground_from_rig"])
@@ -252,12 +255,12 @@ fn check_markers(dir: &Path, nominal_pose: bool) -> (usize, usize) {
             true_pose
         };
         let (w, h, img) = grey(&dir.join(c["left"]["files"][0].as_str().unwrap()));
-        let _ = i;
+        let img: Vec<f32> = img.into_iter().map(f32::from).collect();
         for m in &markers {
             if !marker_visible(&tracer, true_pose.translation_m, m) {
                 continue;
             }
-            let Some([u, v]) = true_cam.project(true_pose.inverse().transform_point(dome(m)))
+            let Some([u, v]) = true_cam.project(true_pose.inverse().transform_point(m.centre_m))
             else {
                 continue;
             };
@@ -265,13 +268,17 @@ fn check_markers(dir: &Path, nominal_pose: bool) -> (usize, usize) {
                 continue;
             }
             let [nu, nv] = cal_cam
-                .project(nominal.inverse().transform_point(dome(m)))
+                .project(nominal.inverse().transform_point(m.centre_m))
                 .unwrap();
-            let (bu, bv) = blob(w, h, &img, u, v);
+            let seen = sight(
+                &img, w, h, &true_cam, &true_pose, m.centre_m, m.radius_m, &light,
+            )
+            .unwrap_or_else(|| panic!("{}: not sighted", m.name));
+            let [bu, bv] = seen.pixel;
             let err = (bu - u).hypot(bv - v);
             assert!(
-                err <= 2.0,
-                "{}: blob ({bu:.1},{bv:.1}) vs true projection ({u:.1},{v:.1})",
+                err <= 0.5,
+                "{}: sighted at ({bu:.2},{bv:.2}), true projection ({u:.2},{v:.2})",
                 m.name
             );
             checked += 1;
@@ -286,42 +293,6 @@ fn check_markers(dir: &Path, nominal_pose: bool) -> (usize, usize) {
         }
     }
     (checked, displaced)
-}
-
-/// The heightfield carries the part of a ball a camera sees, its upper half (a dome over a
-/// short skirt); the bright blob is centred on the dome's centroid, half a radius above the
-/// ball centre.
-fn dome(m: &TrueMarker) -> [f64; 3] {
-    [
-        m.centre_m[0],
-        m.centre_m[1],
-        m.centre_m[2] + 0.5 * m.radius_m,
-    ]
-}
-
-fn blob(w: usize, h: usize, img: &[u8], u: f64, v: f64) -> (f64, f64) {
-    let (cu, cv, r) = (u.round() as usize, v.round() as usize, 5usize);
-    let mut vals: Vec<u8> = Vec::new();
-    for y in cv - r..=cv + r {
-        vals.extend_from_slice(&img[y * w + cu - r..=y * w + cu + r]);
-    }
-    vals.sort_unstable();
-    let (bg, peak) = (
-        f64::from(vals[vals.len() / 2]),
-        f64::from(vals[vals.len() - 1]),
-    );
-    let (mut sx, mut sy, mut sw) = (0.0, 0.0, 0.0);
-    for y in cv - r..=(cv + r).min(h - 1) {
-        for x in cu - r..=cu + r {
-            let val = f64::from(img[y * w + x]);
-            if val > bg + 0.5 * (peak - bg) {
-                sx += (val - bg) * x as f64;
-                sy += (val - bg) * y as f64;
-                sw += val - bg;
-            }
-        }
-    }
-    (sx / sw, sy / sw)
 }
 
 #[test]

@@ -7,7 +7,7 @@
 use regolith_format::camera_model::{CameraModel, Distortion};
 use regolith_validator::render::{
     render, AlbedoGrid, Geometry, HeightGrid, HeightfieldTracer, Light, MeshTexture, RenderOptions,
-    Rendered, Scene, TriMeshF32, View,
+    Rendered, Scene, Sphere, TriMeshF32, View,
 };
 
 const PLAIN: RenderOptions = RenderOptions {
@@ -732,4 +732,60 @@ fn relit_hits_give_the_bytes_of_a_render() {
             );
         }
     }
+}
+
+#[test]
+fn a_sphere_is_seen_shaded_and_casts_its_shadow_exactly() {
+    // A ball of radius 0.2 m on flat ground, seen from 5 m straight above, lit from +x at 45°.
+    let view = View::look_at(
+        CameraModel::pinhole(201, 201, 150.0, 150.0, 100.0, 100.0),
+        [2.0, -2.0, 5.0],
+        [2.0, -2.0, 0.0],
+    );
+    let g = heightfield(grid(41, 41, 0.1, |_, _| 0.0), 0.5);
+    let ball = Sphere {
+        centre: [2.0, -2.0, 0.2],
+        radius: 0.2,
+        albedo: 0.9,
+    };
+    let scene = Scene::new(&g).with_spheres(vec![ball]);
+    let l = light(0.0, 45.0, 0.25);
+    let opts = RenderOptions {
+        shadows: true,
+        ..PLAIN
+    };
+    let r = scene.render(&l, &view, &opts);
+    // The top of the ball is 0.4 m above the ground: depth 4.6 m.
+    let top = project(&view, [2.0, -2.0, 0.4]);
+    assert!((f64::from(at(&r, &r.depth, top)) - 4.6).abs() < 1e-4);
+    // Its top faces straight up: n·l = sin 45°.
+    let want = 0.9 * (0.25 + 0.75 * 45f64.to_radians().sin());
+    assert!((f64::from(at(&r, &r.radiance, top)) - want).abs() < 1e-5);
+    // The ball's silhouette: the exact ray–sphere hit inside, ground beyond.
+    let h = |t: f64| f64::from(at(&r, &r.depth, [100.0 + t, 100.0]));
+    let edge = 150.0 * 0.2 / (4.8f64.powi(2) - 0.04).sqrt();
+    assert!(h(edge - 0.6) < 4.81 && (h(edge + 0.6) - 5.0).abs() < 1e-4);
+    // Its shadow falls on the -x side: at 45° the ball's centre casts onto x = 1.8, and the
+    // shadow spans ±0.2 √2 about it along x.
+    let shadowed = 0.5 * 0.25;
+    let ground = |x: f64| f64::from(at(&r, &r.radiance, project(&view, [x, -2.0, 0.0])));
+    assert!((ground(2.0 - 0.35) - shadowed).abs() < 1e-5);
+    let lit = 0.5 * (0.25 + 0.75 * 45f64.to_radians().sin());
+    assert!((ground(2.0 + 0.35) - lit).abs() < 1e-5);
+    assert!((ground(1.8 - 0.2 * 2f64.sqrt() - 0.05) - lit).abs() < 1e-5);
+    // The geometry alone (no sphere) has no ball.
+    let bare = Scene::new(&g).render(&l, &view, &opts);
+    assert!((f64::from(at(&bare, &bare.depth, top)) - 5.0).abs() < 1e-4);
+    // A ray from inside the sphere meets its far side; rays that miss it meet nothing.
+    let o = [2.0, -2.0, 0.2];
+    let hit = ball
+        .hit(o, [0.0, 0.0, 2.0], 0.0, f64::INFINITY)
+        .expect("far side");
+    assert!((hit.t - 0.1).abs() < 1e-12 && (hit.normal[2] - 1.0).abs() < 1e-12);
+    assert!(ball
+        .hit([2.5, -2.0, 5.0], [0.0, 0.0, -1.0], 0.0, f64::INFINITY)
+        .is_none());
+    assert!(ball
+        .hit([2.0, -2.0, 5.0], [0.0, 0.0, -1.0], 0.0, 4.0)
+        .is_none());
 }

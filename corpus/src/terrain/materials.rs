@@ -12,6 +12,9 @@ use super::synth::material;
 use super::GridShape;
 use crate::seeding::{fractal, lattice, stage_hash};
 
+/// Albedo of a survey marker ball (white).
+pub const MARKER_ALBEDO: f64 = 0.98;
+
 /// Builds the albedo grid from the per-cell materials.
 pub fn albedo(shape: &GridShape, materials: &[u8], seed: u64) -> AlbedoGrid {
     let patches = stage_hash(seed, "albedo.patches", 0);
@@ -25,7 +28,7 @@ pub fn albedo(shape: &GridShape, materials: &[u8], seed: u64) -> AlbedoGrid {
         let a = match m {
             material::GYPSUM => 0.78 + 0.08 * g,
             material::PEBBLE => 0.18 + 0.08 * g,
-            material::MARKER => 0.98,
+            material::MARKER => MARKER_ALBEDO,
             _ => 0.33 + 0.07 * fractal(patches, x, y, 0.8, 0.05, 0.7) + 0.08 * g,
         };
         a.clamp(0.02, 1.0) as f32

@@ -11,6 +11,8 @@
 //!   see [`heightfield`]; every quad between four cell centres is split along its NW–SE diagonal
 //!   into two planar triangles, the same split as the compiler's glTF meshes. **Meshes** are
 //!   traced through a bounding-volume hierarchy ([`mesh`]) and shaded with per-face normals.
+//!   A scene may also hold exact [`Sphere`]s beside its geometry (a synthetic campaign's
+//!   survey marker balls), intersected analytically.
 //! * **Texture filtering**: a ray sample whose footprint on the surface spans more than one
 //!   texel reads the texture's box-filtered mip levels, trilinearly at `log2(footprint)`
 //!   (`shading::MipChain`; the footprint is the side of the square with the area of the
@@ -240,6 +242,45 @@ pub struct Scene<'a> {
     /// Camera-ray tables of the cameras rendered so far (most recent last), see
     /// [`raster::RayTable`].
     rays: std::sync::Mutex<Vec<std::sync::Arc<raster::RayTable>>>,
+    /// Exact spheres standing on the geometry (survey marker balls), see [`Sphere`].
+    pub(crate) spheres: Vec<Sphere>,
+}
+
+/// An exact sphere rendered beside the scene's geometry: a survey marker ball.
+///
+/// Why: a ball stamped into a height grid keeps only its cap, faceted to the grid's cells,
+/// so its image's centre sits a tenth of a pixel or more from the projection of the ball's
+/// centre, which no sighting can correct. Captures of a synthetic campaign render their balls
+/// as spheres, so a ball's sighting is as exact as a real ball's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sphere {
+    /// Ground-frame centre, metres.
+    pub centre: [f64; 3],
+    /// Radius, metres.
+    pub radius: f64,
+    /// Diffuse albedo of its surface.
+    pub albedo: f32,
+}
+
+impl Sphere {
+    /// The nearest hit of the ray `o + t d` (`d` need not be unit) with `t_min < t < t_max`.
+    pub fn hit(&self, o: [f64; 3], d: [f64; 3], t_min: f64, t_max: f64) -> Option<Hit> {
+        let oc: [f64; 3] = std::array::from_fn(|k| o[k] - self.centre[k]);
+        let a: f64 = d.iter().map(|v| v * v).sum();
+        let b: f64 = (0..3).map(|k| oc[k] * d[k]).sum();
+        let c: f64 = oc.iter().map(|v| v * v).sum::<f64>() - self.radius * self.radius;
+        let disc = b * b - a * c;
+        if a <= 0.0 || disc < 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
+        let t = [(-b - root) / a, (-b + root) / a]
+            .into_iter()
+            .find(|t| *t > t_min && *t < t_max)?;
+        let point: [f64; 3] = std::array::from_fn(|k| o[k] + t * d[k]);
+        let normal = std::array::from_fn(|k| (point[k] - self.centre[k]) / self.radius);
+        Some(Hit { t, point, normal })
+    }
 }
 
 /// Ray tables kept per scene (one per camera and sampling rate; a stereo rig needs two).
@@ -272,7 +313,15 @@ impl<'a> Scene<'a> {
         Scene {
             kind,
             rays: std::sync::Mutex::new(Vec::new()),
+            spheres: Vec::new(),
         }
+    }
+
+    /// The scene with `spheres` standing on its geometry: they are seen, shaded and cast
+    /// shadows like the geometry, and are nearer than it where a ray meets both.
+    pub fn with_spheres(mut self, spheres: Vec<Sphere>) -> Scene<'a> {
+        self.spheres = spheres;
+        self
     }
 
     /// The ray table of `camera` at `supersample`, built on first use and kept for the next

@@ -337,8 +337,20 @@ impl RayTable {
 }
 
 /// The nearest hit and its albedo (filtered over the footprint of a sample `spread` wide in
-/// normalised image coordinates).
+/// normalised image coordinates): the geometry's or a sphere's, whichever is nearer.
 fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hit, f32)> {
+    let ground = trace_geometry(scene, o, d, spread);
+    let t_max = ground.map_or(f64::INFINITY, |(h, _)| h.t);
+    let ball = scene
+        .spheres
+        .iter()
+        .filter_map(|s| s.hit(o, d, 0.0, t_max).map(|h| (h, s.albedo)))
+        .min_by(|a, b| a.0.t.total_cmp(&b.0.t));
+    ball.or(ground)
+}
+
+/// The nearest hit of the scene's geometry (spheres aside) and its albedo.
+fn trace_geometry(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hit, f32)> {
     match &scene.kind {
         SceneKind::Heightfield {
             tracer,
@@ -355,10 +367,17 @@ fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hi
 }
 
 fn occluded(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3]) -> bool {
-    match &scene.kind {
-        SceneKind::Heightfield { tracer, .. } => tracer.occluded(o, d, f64::INFINITY),
-        SceneKind::Mesh { tracer } => tracer.occluded(o, d, f64::INFINITY),
-    }
+    let ball = || {
+        scene
+            .spheres
+            .iter()
+            .any(|s| s.hit(o, d, 0.0, f64::INFINITY).is_some())
+    };
+    ball()
+        || match &scene.kind {
+            SceneKind::Heightfield { tracer, .. } => tracer.occluded(o, d, f64::INFINITY),
+            SceneKind::Mesh { tracer } => tracer.occluded(o, d, f64::INFINITY),
+        }
 }
 
 /// `CameraModel::unproject` with an analytic Jacobian: the same Newton iteration on the same
