@@ -462,10 +462,10 @@ const MAX_ITER: usize = 200;
 pub const CALIBRATION_DK: [f64; 2] = [0.0077, 0.0071];
 
 /// [`CALIBRATION_DK`] where the survey markers' sightings joined the fit (the same seeds
-/// 108–114: `dk1` errors 0.0005–0.0031, `dk2` 0.0004–0.0091). Twice the reported error then
-/// covers `dk1`'s error on all of seeds 101–107 (errors 0.0018–0.0042) and `dk2`'s (up to
-/// 0.0105).
-pub const CALIBRATION_DK_SIGHTED: [f64; 2] = [0.0022, 0.0043];
+/// 108–114: `dk1` errors 0.0002–0.0024, `dk2` 0.0000–0.0076). Twice the reported error then
+/// covers `dk1`'s error on all of seeds 101–107 (errors 0.0000–0.0039) and `dk2`'s (up to
+/// 0.0080).
+pub const CALIBRATION_DK_SIGHTED: [f64; 2] = [0.0013, 0.0034];
 
 /// Parameter layout of the joint fit.
 pub const PARAMS: [&str; 8] = [

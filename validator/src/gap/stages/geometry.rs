@@ -114,10 +114,12 @@ pub(crate) fn pair_levels(
 /// Weight of a survey marker's sighting residual, per pixel, in the geometric fit where the
 /// render's residual has unit mean square (its samples, in unit-variance band-pass units, have
 /// weight 1): the weight is this times the render's mean squared residual at the fit the
-/// sightings join ([`marker_weight`]). Mini seeds 101–114, a pose bias hidden, two captures: at 10 per pixel 13 of the 84 axes were off the targets
-/// (±0.1°, ±3 mm), at 50 2, at 250 none (mean error 0.022° and 0.55 mm, worst 0.083° and 2.1
-/// mm), at 1000 none with the same errors: from about 250 the sightings hold the pose and the
-/// render and the pairs what the sightings leave free. Their scatter at the true poses is 0.15
+/// sightings join ([`marker_weight`]). Mini seeds 101–114, a pose bias hidden, two captures:
+/// at 10 per pixel 13 of the 84 axes were off the targets (±0.1°, ±3 mm), at 50 2, at 250
+/// none (mean error 0.022° and 0.55 mm, worst 0.083° and 2.1 mm), at 1000 none with the same
+/// errors: from about 250 the sightings hold the pose and the render and the pairs what the
+/// sightings leave free (balls drawn as caps; as spheres, at 250: none off, mean 0.021° and
+/// 0.47 mm, worst 0.098° and 2.2 mm). Their scatter at the true poses is 0.15
 /// px, so one sighting's coordinate then weighs like some 1 400 render samples of unit
 /// variance — of which there are 10⁵, correlated over the band's width and sharing the entry's
 /// bias.
@@ -126,13 +128,13 @@ const MARKER_WEIGHT: f64 = 250.0;
 /// The weight of a sighting's residual next to render samples whose mean squared residual is
 /// `render_mse`: [`MARKER_WEIGHT`] times it. What the sightings correct is the entry's error;
 /// where the render explains the images closely they would be weighed against a render that is
-/// right, and their own errors are not small: on mini each ball's sightings lie 0.1–0.3 px
-/// off, the same in every view of it (the corpus stamps a ball into its height grid, 2.5–5 mm
-/// cells, so the "real" ball is a faceted cap; its Vicon mean is within 0.01 px). On the
-/// campaign's true terrain (alignment residual 0.005–0.008, against 1.1 through the laser
-/// entry) sightings at the entry's weight pulled a hidden distortion's dk1 −9.6 and +14.3 %
-/// off (mini seeds 101, 102), weighted by the render's RMS residual −7.1 and +5.5 %, by its
-/// mean square −3.2 and −1.0 % (−2.7 and −0.3 % without sightings). Through the entry the
+/// right, and their own errors are not small. Measured when the corpus still drew its balls
+/// as caps faceted into the height grid (each ball's sightings 0.1–0.3 px off, the same in
+/// every view of it), on the campaign's true terrain (alignment residual 0.005–0.008, against
+/// 1.1 through the laser entry): sightings at the entry's weight pulled a hidden distortion's
+/// dk1 −9.6 and +14.3 % off (mini seeds 101, 102), weighted by the render's RMS residual −7.1
+/// and +5.5 %, by its mean square −3.2 and −1.0 % (−2.7 and −0.3 % without sightings). With
+/// the balls rendered as spheres, by its mean square: −2.8 and −1.0 %. Through the entry the
 /// weight stays near [`MARKER_WEIGHT`].
 fn marker_weight(render_mse: f64) -> f64 {
     MARKER_WEIGHT * render_mse.max(0.0)
