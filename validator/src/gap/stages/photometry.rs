@@ -330,6 +330,7 @@ pub(crate) fn photometry_stage(
         fit_final(&fit_set, &|fold| fold != hold).params.to_vec()
     });
     let mut std_err = honest_std_err(f.std_err, jack);
+    std_err[2] = std_err[2].hypot(photometry::CALIBRATION_VIGNETTING);
     if let (Some(_), Some(w)) = (plain.black, &noise_curve) {
         std_err[1] = w.black_se / 255.0;
     }
