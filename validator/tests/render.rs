@@ -788,4 +788,9 @@ fn a_sphere_is_seen_shaded_and_casts_its_shadow_exactly() {
     assert!(ball
         .hit([2.0, -2.0, 5.0], [0.0, 0.0, -1.0], 0.0, 4.0)
         .is_none());
+    // A degenerate ball is never hit (no NaN normal).
+    for radius in [0.0, -0.2, f64::NAN] {
+        let bad = Sphere { radius, ..ball };
+        assert!(bad.hit(o, [0.0, 0.0, 1.0], 0.0, f64::INFINITY).is_none());
+    }
 }

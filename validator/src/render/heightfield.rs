@@ -27,7 +27,8 @@ pub struct Hit {
     pub t: f64,
     /// Ground-frame intersection point.
     pub point: [f64; 3],
-    /// Unit normal of the triangle hit, pointing up (z > 0).
+    /// Unit normal of the surface hit: a triangle's pointing up (z > 0), a [`super::Sphere`]'s
+    /// outward.
     pub normal: [f64; 3],
 }
 

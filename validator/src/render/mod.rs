@@ -263,14 +263,15 @@ pub struct Sphere {
 }
 
 impl Sphere {
-    /// The nearest hit of the ray `o + t d` (`d` need not be unit) with `t_min < t < t_max`.
+    /// The nearest hit of the ray `o + t d` (`d` need not be unit) with `t_min < t < t_max`;
+    /// its normal points outward. A sphere of no (or no finite) radius is never hit.
     pub fn hit(&self, o: [f64; 3], d: [f64; 3], t_min: f64, t_max: f64) -> Option<Hit> {
         let oc: [f64; 3] = std::array::from_fn(|k| o[k] - self.centre[k]);
         let a: f64 = d.iter().map(|v| v * v).sum();
         let b: f64 = (0..3).map(|k| oc[k] * d[k]).sum();
         let c: f64 = oc.iter().map(|v| v * v).sum::<f64>() - self.radius * self.radius;
         let disc = b * b - a * c;
-        if a <= 0.0 || disc < 0.0 {
+        if a <= 0.0 || disc < 0.0 || self.radius <= 0.0 || !self.radius.is_finite() {
             return None;
         }
         let root = disc.sqrt();
