@@ -70,9 +70,12 @@ const TEXTURE_TOL: f64 = 0.25;
 /// ([`targets::POSE_DEG`], [`targets::POSE_M`]): the survey markers' sightings pin what the
 /// pairs between the two captures cannot see.
 const LONE_POSE_BIAS_TOL_M: f64 = 0.007;
-/// Tolerances of an effect hidden next to another are this many times wider (except
-/// vignetting's): exposure and the response curve are only jointly identifiable with the
-/// level and falloff fitted next to them.
+/// Tolerances of an exposure or a pose bias hidden next to another effect are this many times
+/// wider: an exposure's gain is only jointly identifiable with the falloff and response curve
+/// fitted next to it (seed 101, beside a blur that a clipping offset cuts: −5.5 %), and a
+/// pose bias's pitch beside a vignetting read 0.1002° off (seed 102). A response curve, a blur
+/// and a vignetting are held to the single-effect targets in pairs too (seeds 101–108: gamma
+/// within 0.006, blur within 0.08 px where named).
 const PAIR_FACTOR: f64 = 2.5;
 /// The figure (an index into [`Figure::ALL`]) each effect's gap is judged by — the one it
 /// shrinks, [`Figure::for_effect`] — and the smallest excess of the gap over its floor (the same
@@ -145,7 +148,11 @@ fn check_params(
     bad: &mut Vec<String>,
 ) {
     let name = truth.name();
-    let widen = if r.truth.len() > 1 { PAIR_FACTOR } else { 1.0 };
+    let widen = if r.truth.len() > 1 && matches!(name, "exposure" | "pose-bias") {
+        PAIR_FACTOR
+    } else {
+        1.0
+    };
     let (shift_tol, dk1_tol) = if lone {
         (LONE_DISTORTION_TOL, LONE_DISTORTION_TOL)
     } else {
