@@ -252,7 +252,10 @@
 //! sightings joined, 25 of them, 6.32 → 0.26 px RMS, −0.0409 and 0.0045: −2.0 % in dk1,
 //! −0.8 % in the displacement, named alone; with the balls rendered as spheres in the
 //! captures, 23 sightings, 5.57 → 0.16 px RMS, −0.0409 and 0.0046 ± 0.0016 and 0.0035:
-//! −2.0 % and −0.9 %, the run 11.5 min on two cores, 5.0 GB peak), and nothing hidden named
+//! −2.0 % and −0.9 %, the run 11.5 min on two cores, 5.0 GB peak; refined once from a render
+//! made through the fit, −0.0410 ± 0.0011 and 0.0048 ± 0.0022: −1.7 % in dk1, −0.8 % in the
+//! displacement, the run 14.1 min, 7.5 GB peak — the refinement's scaled band-passes live
+//! beside the first pass's, which the jackknife still needs), and nothing hidden named
 //! nothing. A hidden texture low-pass of 27.5 mm came out 24.1 ± 4.1 mm, alone; before the
 //! rig-frame bias and the stereo pairs a false pose bias (28 mm along the optical axis) was named
 //! next to it (the band-pass alignment, with the texture low-passed, sees mostly relief shading).
