@@ -686,16 +686,9 @@ pub(crate) fn geometry_stage(
     if witness.as_ref().is_some_and(|w| !w.agrees()) {
         return scored(&cands);
     }
-    let first = with_geometry(model, &set, &f.params);
-    let seen = ctx.predict_all(&first);
-    let seen_levels = geometry_levels(ctx, &first, &seen);
-    let (refine, _, refined) = witnessed_fit(ctx, &first, &seen, &seen_levels, &set, &|| terms);
-    let current = with_geometry(&first, &set, &refine.params);
-    let std_err_fit = refine.std_err;
-    let sightings = refined
-        .and_then(|w| w.markers)
-        .or(witness.as_ref().and_then(|w| w.markers));
-
+    // The jackknife and the per-capture fits take the first pass's samples and pairs; they are
+    // made before the refinement so that those levels (on estec the cross-capture pairs' scaled
+    // band-passes run to gigabytes) are dropped before the refinement makes its own.
     let joint = witness.as_ref().map_or(&levels, |w| &w.levels);
     let jack = jackknife(ctx.n_folds, &|hold| {
         let p = fit_levels(joint, &set, terms, &|o, imgs| !touches(o, imgs, hold)).params;
@@ -703,6 +696,35 @@ pub(crate) fn geometry_stage(
         v.push(radial_shift(&p));
         v
     });
+    // Per capture: the first pass on that capture's samples and pairs alone.
+    let names = ctx.fold_names();
+    let per_fold: Vec<(String, SensorModel)> = if ctx.n_folds >= 2 {
+        (0..ctx.n_folds)
+            .map(|k| {
+                let q = fit_levels(joint, &set, terms, &|o, imgs| within(o, imgs, k)).params;
+                (names[k].clone(), with_geometry(model, &set, &q))
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let witness = witness.map(|w| Witness {
+        levels: Vec::new(),
+        ..w
+    });
+    let (current, std_err_fit, sightings) = {
+        let first = with_geometry(model, &set, &f.params);
+        let seen = ctx.predict_all(&first);
+        let seen_levels = geometry_levels(ctx, &first, &seen);
+        let (refine, _, refined) = witnessed_fit(ctx, &first, &seen, &seen_levels, &set, &|| terms);
+        (
+            with_geometry(&first, &set, &refine.params),
+            refine.std_err,
+            refined
+                .and_then(|w| w.markers)
+                .or(witness.as_ref().and_then(|w| w.markers)),
+        )
+    };
     // dk1 and dk2 trade off over the terrain's part of the image, so each alone can be within
     // its error of zero while the displacement they make together is well determined: a
     // distortion is named only if that displacement is (mini seed 102 with a 19 mm texture
@@ -796,19 +818,6 @@ pub(crate) fn geometry_stage(
     {
         return scored(&cands);
     }
-    // Per capture: the first pass (before a pose bias's refinement) on that capture's samples
-    // and pairs alone.
-    let names = ctx.fold_names();
-    let per_fold: Vec<(String, SensorModel)> = if ctx.n_folds >= 2 {
-        (0..ctx.n_folds)
-            .map(|k| {
-                let q = fit_levels(joint, &set, terms, &|o, imgs| within(o, imgs, k)).params;
-                (names[k].clone(), with_geometry(model, &set, &q))
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
     *model = current;
     let base_err = cands
         .iter()
