@@ -254,9 +254,10 @@
 //! captures, 23 sightings, 5.57 → 0.16 px RMS, −0.0409 and 0.0046 ± 0.0016 and 0.0035:
 //! −2.0 % and −0.9 %, the run 11.5 min on two cores, 5.0 GB peak; refined once from a render
 //! made through the fit, −0.0410 ± 0.0011 and 0.0048 ± 0.0022: −1.7 % in dk1, −0.8 % in the
-//! displacement, the run 14.1 min, 7.5 GB peak — the refinement's scaled band-passes live
-//! beside the first pass's, which the jackknife still needs), and nothing hidden named
-//! nothing. A hidden texture low-pass of 27.5 mm came out 24.1 ± 4.1 mm, alone; before the
+//! displacement, the run 14.1 min, 7.5 GB peak while the refinement's scaled band-passes
+//! lived beside the first pass's; with the jackknife and the per-capture fits made before the
+//! refinement and the first pass's dropped, the same result at 5.8 GB peak), and nothing
+//! hidden named nothing. A hidden texture low-pass of 27.5 mm came out 24.1 ± 4.1 mm, alone; before the
 //! rig-frame bias and the stereo pairs a false pose bias (28 mm along the optical axis) was named
 //! next to it (the band-pass alignment, with the texture low-passed, sees mostly relief shading).
 //! It is no longer chosen because its held-out drop, 0.034, is under the geometric floor (0.04) —
