@@ -54,7 +54,8 @@ const DISTORTION_SHIFT_TOL: f64 = 0.05;
 /// pixels are sampled while the displacement above stays within a few. Fitted / true − 1,
 /// seeds 101, 102: −1.1 and +5.7 % (seeds 101–114: 12 of 14 within 5 %, mean 2.0 %, worst
 /// +9.9 %; before the refinement from a render made through the fit 0.0 and +8.6 %, 11 of 14,
-/// mean 3.3 %; without the sightings 5 of 14, mean 9.1 %, worst +26.8 %).
+/// mean 3.3 %; without the sightings 5 of 14, mean 9.1 %, worst +26.8 %). From four capture
+/// locations `dk1` is held to the workflow's ±5 % (see the test for it).
 const ENTRY_DK1_TOL: f64 = 0.08;
 /// Distortion seen by a lone camera (no stereo pairs, so no sightings in its fit; its two
 /// captures paired with each other, both radial terms): the displacement at 0.7 of the radius
@@ -384,6 +385,23 @@ fn a_pose_bias_seen_from_six_capture_locations_is_within_the_targets_on_every_ax
             ..Setup::default()
         },
         &[("pose-bias", 101), ("pose-bias", 102)],
+    );
+}
+
+/// From four capture locations (`corpus generate --captures 4`) a distortion on the laser entry
+/// must come out with `dk1` within the workflow's ±5 %: what leaves it off by up to 10 % from
+/// mini's two locations is the precision of the dk1–dk2 split (the reported σ of `dk1` is
+/// 7–15 % of it there), which twice the views halve. Seeds 101–114: within 3.9 %, mean 1.4 %
+/// (−2.4, +1.0, 0.0, +3.9, +0.3, −0.8, 0.0, −2.5, −0.6, +1.9, +1.6, −0.5, −3.0, −0.6 %), every
+/// error within twice the reported σ; from two locations 12 of 14, mean 2.0 %, worst +9.9 %.
+#[test]
+fn a_distortion_seen_from_four_capture_locations_has_dk1_within_the_target() {
+    assert_within_targets_on_every_axis(
+        &Setup {
+            captures: Some(4),
+            ..Setup::default()
+        },
+        &[("distortion", 101), ("distortion", 102)],
     );
 }
 

@@ -47,7 +47,7 @@
 //! calibration's while the real frame's are the distortion's, which biases the increment
 //! along the dk1–dk2 valley even on the true terrain; the geometry stage therefore refines
 //! every fit once from a render made through it (12 of 14 within 5 %, mean 2.0 %, with the
-//! markers' balls drawn as spheres).
+//! markers' balls drawn as spheres; from four capture locations 14 of 14, mean 1.4 %).
 //!
 //! The fit is Levenberg–Marquardt over all views jointly (the effects are fixed to the camera,
 //! so they are the same in every capture), coarse to fine (band σ 3–12 px, then 1.5–8 px), the
