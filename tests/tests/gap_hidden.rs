@@ -8,7 +8,7 @@
 //! and reported together, with the confusion matrix.
 //!
 //! Every case is generated with mini's two capture locations but for a distortion and a pose
-//! bias beside a vignetting, which need four to meet the workflow's targets ([`captures_for`]).
+//! bias beside a vignetting, which need four to meet the workflow's targets ([`test_captures`]).
 //! Tolerances are those measured on these campaigns (the gap module's docs, known limits);
 //! where they are looser than the workflow's targets (an exposure's gain, a lone camera), what
 //! limits them is how little of the camera's field and depth range the capture locations show,
@@ -24,7 +24,7 @@ use std::collections::BTreeMap;
 
 use regolith_format::frames::Pose;
 use regolith_tests::gap_case::{
-    cases, figures, run_case, targets, CaseResult, Confusion, Setup, TerrainChoice,
+    cases, figures, run_case, targets, test_captures, CaseResult, Confusion, Setup, TerrainChoice,
 };
 use regolith_validator::gap::Figure;
 use regolith_validator::sensor::{distortion_shift, Effect, Placement, SensorModel};
@@ -46,30 +46,12 @@ const NOISE_TOL: f64 = 0.05;
 const EXPOSURE_GAIN_TOL: f64 = 0.10;
 /// Radial displacement of the distortion at 0.7 of the radius, relative: the displacement is
 /// what the images determine best (dk1 and dk2 trade off over the terrain's part of the image).
-/// Seeds 101, 102 from four capture locations ([`captures_for`]): −1.2 and −0.6 %. From two,
+/// Seeds 101, 102 from four capture locations ([`test_captures`]): −1.2 and −0.6 %. From two,
 /// −1.1 and −1.0 % with both radial terms fitted jointly to the render, the stereo pairs and
 /// the survey markers' sightings and refined from a render made through the fit (seeds
 /// 101–114: within 2.8 %, mean 1.0 %; without the refinement within 3.4 %, mean 0.9 %;
 /// without the sightings within 14.0 %, mean 4.0 %).
 const DISTORTION_SHIFT_TOL: f64 = 0.05;
-/// Capture locations the case `label` is generated with: mini's two (`None`), but four for a
-/// distortion and for a pose bias beside a vignetting, which two do not hold to the workflow's
-/// targets.
-///
-/// A distortion's `dk1` and `dk2` trade off along a valley whose stopping point the entry's
-/// errors set; from two locations the reported σ of `dk1` is 7–15 % of it, and seeds 101–114
-/// read `dk1` within 5 % on 12 of 14 (mean 2.0 %, worst +9.9 %, seed 102 +5.7 %), the
-/// displacement at 0.7 of the radius within 2.8 %. From four: 14 of 14, mean 1.4 %, worst
-/// 3.9 % (−2.4, +1.0, 0.0, +3.9, +0.3, −0.8, 0.0, −2.5, −0.6, +1.9, +1.6, −0.5, −3.0, −0.6 %),
-/// every error within twice the reported σ.
-///
-/// A pose bias beside a vignetting, from two locations (seeds 101–108): 95 of 96 axes within
-/// the targets, seed 102's pitch 0.1002° off. From four, seeds 101–104: worst axes
-/// 0.021°/0.7 mm, 0.084°/1.8 mm, 0.017°/0.2 mm, 0.013°/0.2 mm; vignetting +1.6, +2.4, −3.0,
-/// −0.3 %.
-fn captures_for(label: &str) -> Option<usize> {
-    matches!(label, "distortion" | "pose-bias+vignetting").then_some(4)
-}
 /// Distortion seen by a lone camera (no stereo pairs, so no sightings in its fit; its two
 /// captures paired with each other, both radial terms): the displacement at 0.7 of the radius
 /// and `dk1`, relative. Seeds 101, 102 (left NavCam alone): shift −1.3 and −4.3 %, dk1 −6.0
@@ -88,7 +70,7 @@ const LONE_POSE_BIAS_TOL_M: f64 = 0.007;
 /// Tolerance of an exposure hidden next to another effect is this many times wider: its gain
 /// is only jointly identifiable with the falloff and response curve fitted next to it (seed
 /// 101, beside a blur that a clipping offset cuts: −5.5 %). A response curve, a blur, a
-/// vignetting and a pose bias (from four locations, [`captures_for`]) are held to the
+/// vignetting and a pose bias (from four locations, [`test_captures`]) are held to the
 /// single-effect targets in pairs too (seeds 101–108: gamma within 0.006, blur within 0.08 px
 /// where named).
 const PAIR_FACTOR: f64 = 2.5;
@@ -320,7 +302,7 @@ fn every_hidden_effect_is_named_fitted_and_shrinks_the_gap() {
     for (label, hidden) in cases() {
         for seed in SEEDS {
             let setup = Setup {
-                captures: captures_for(&label),
+                captures: test_captures(&label),
                 ..Setup::default()
             };
             let r = run_case(root.path(), &label, seed, &hidden, &setup);
