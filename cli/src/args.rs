@@ -13,9 +13,13 @@ use clap::{Parser, Subcommand, ValueEnum};
 Format spec: format-spec/SPEC.md (regolith.db/1)."
 )]
 pub struct Cli {
-    /// Print machine-readable JSON on stdout instead of the human summary.
+    /// Print machine-readable JSON on stdout instead of the human summary (progress still goes
+    /// to stderr).
     #[arg(long, global = true)]
     pub json: bool,
+    /// Show no progress on stderr (errors are still printed).
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
     /// The command.
     #[command(subcommand)]
     pub command: Command,
@@ -180,6 +184,21 @@ pub enum Command {
         /// The database folder.
         db: PathBuf,
     },
+    /// Print a shell completion script to stdout, e.g.
+    /// `regolith completions bash > ~/.local/share/bash-completion/completions/regolith`.
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the man page regolith(1) (roff) to stdout, e.g.
+    /// `regolith manpage > ~/.local/share/man/man1/regolith.1`; with `--dir`, write it and one
+    /// page per command (regolith-compile(1), ...) into a folder.
+    Manpage {
+        /// Write `regolith.1` and `regolith-<command>.1` for every command into this folder.
+        #[arg(long, value_name = "DIR")]
+        dir: Option<PathBuf>,
+    },
 }
 
 /// Engine-specific export variants (SPEC.md §5.1).
@@ -254,8 +273,9 @@ pub enum FeaturesAction {
         /// harris, fast, sift, surf or mser.
         #[arg(long, default_value = "sift")]
         detector: String,
-        /// 3x3 homography mapping A pixels to B pixels: a text file of 9 numbers, or an OpenCV
-        /// FileStorage YAML holding one 3x3 `!!opencv-matrix`.
+        /// 3x3 homography mapping A pixels to B pixels: 9 numbers as text (the Oxford dataset's
+        /// `H1to3p`), or an OpenCV FileStorage XML, YAML or JSON file holding one 3x3
+        /// `opencv-matrix` (OpenCV's `samples/data/H1to3p.xml`).
         #[arg(long, conflicts_with = "same_pose")]
         homography: Option<PathBuf>,
         /// The images were taken from the same pose (identity mapping).

@@ -12,6 +12,7 @@ macro_rules! say {
 
 mod args;
 mod commands;
+mod paths;
 mod progress;
 
 use std::process::ExitCode;
@@ -42,6 +43,7 @@ pub fn say_line(args: std::fmt::Arguments<'_>) {
 
 fn main() -> ExitCode {
     let cli = args::Cli::parse();
+    progress::set_quiet(cli.quiet);
     let result = std::panic::catch_unwind(|| commands::run(&cli));
     match result {
         Ok(Ok(Outcome::Ok)) => ExitCode::SUCCESS,

@@ -1,28 +1,46 @@
 //! Progress of long work on stderr, shared by every command that runs for more than a moment:
 //! an indicatif bar with the elapsed time and the current step on a terminal, one line per step
-//! where stderr is a log (CI, `2> file`), nothing with `--json` (scripts read stdout and want a
-//! quiet stderr). It also times the steps, so a command can say where its time went.
+//! where stderr is a log (CI, `2> file`). `--json` changes stdout only: a user waiting minutes
+//! for `validate --json > cert.json` still wants to know what it is doing, so progress stays on
+//! stderr; `--quiet` silences it. It also times the steps, so a command can say where its time
+//! went.
 
 use std::io::IsTerminal;
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+/// `--quiet`: set once by `main` for the whole process, as the display is the process's.
+static QUIET: OnceLock<bool> = OnceLock::new();
+
+/// Silences every later [`Progress`] (`--quiet`).
+pub fn set_quiet(quiet: bool) {
+    // Set once, before any command runs; a second call keeps the first value.
+    let _ = QUIET.set(quiet);
+}
+
 /// A command's progress display and step clock.
 pub struct Progress {
     bar: ProgressBar,
-    /// Print one line per step (stderr is not a terminal and the output is not JSON).
+    /// Print one line per step (stderr is not a terminal and not `--quiet`).
     lines: bool,
     /// Each step's label and when it began, in order.
     steps: Mutex<Vec<(String, Instant)>>,
 }
 
+impl Default for Progress {
+    fn default() -> Progress {
+        Progress::new()
+    }
+}
+
 impl Progress {
-    /// A display for a command run with or without `--json`.
-    pub fn new(json: bool) -> Progress {
+    /// A display on stderr, silent after [`set_quiet`].
+    pub fn new() -> Progress {
+        let quiet = QUIET.get().copied().unwrap_or(false);
         let tty = std::io::stderr().is_terminal();
-        let bar = if tty && !json {
+        let bar = if tty && !quiet {
             ProgressBar::new(1000)
         } else {
             ProgressBar::hidden()
@@ -34,7 +52,7 @@ impl Progress {
         );
         Progress {
             bar,
-            lines: !tty && !json,
+            lines: !tty && !quiet,
             steps: Mutex::new(Vec::new()),
         }
     }

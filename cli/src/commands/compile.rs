@@ -46,7 +46,7 @@ pub fn run(
         anyhow::bail!("`regolith compile` needs --db DB (or --check to only parse the campaign)");
     };
     let writer = Writer::create_or_open(db)?;
-    let progress = Progress::new(json);
+    let progress = Progress::new();
     let opts = compile::options(&c, release);
     let summary = compile::compile(&c, &writer, &opts, &|stage, f| progress.report(stage, f))?;
     progress.finish();

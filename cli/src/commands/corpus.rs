@@ -21,6 +21,8 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         out,
         bad_inputs,
     } = action;
+    let out = &crate::paths::absolute(out)?;
+    let bad_inputs = &crate::paths::absolute_opt(bad_inputs.as_deref())?;
     let mut hidden = match hidden_effect {
         Some(list) => effects::parse_list(list)?,
         None => Vec::new(),
@@ -38,7 +40,7 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         captures: captures.map(|n| n as usize),
         hidden,
     };
-    let progress = Progress::new(json);
+    let progress = Progress::new();
     let summary = generate(&opts, out, &|stage, f| progress.report(stage, f))
         .with_context(|| format!("generating into {}", out.display()))?;
     progress.finish();

@@ -44,7 +44,7 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let writer = Writer::create_or_open(&db_path)?;
     // Rough shares of a demo run's time (two cores), for the progress display.
-    let progress = Progress::new(json);
+    let progress = Progress::new();
     let summary = compile::compile(
         &c,
         &writer,

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use anyhow::{bail, Context};
-use regolith_compiler::ingest::{images, yaml_lite};
+use regolith_compiler::ingest::{homography, images};
 use regolith_format::limits::Limits;
 use regolith_validator::features::{self, contrast, Detector, DetectorParams, GreyF32};
 use regolith_validator::metrics::repeatability::{repeatability, EPSILONS};
@@ -14,39 +14,9 @@ use crate::args::FeaturesAction;
 use crate::Outcome;
 
 fn load(path: &Path) -> anyhow::Result<GreyF32> {
-    let g = images::read_path(path, &Limits::default())?;
+    let g = images::read_path(&crate::paths::absolute(path)?, &Limits::default())?;
     let img = GreyF32::new(g.width as usize, g.height as usize, g.data).context("empty image")?;
     Ok(contrast::stretch(&img))
-}
-
-/// Reads a 3x3 homography: 9 numbers as text, or the first 3x3 matrix of an OpenCV YAML file.
-fn homography(path: &Path) -> anyhow::Result<[f64; 9]> {
-    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    let text = String::from_utf8_lossy(&bytes);
-    let numbers: Vec<f64> = text
-        .split(|c: char| c.is_whitespace() || c == ',' || c == ';')
-        .filter(|t| !t.is_empty())
-        .map_while(|t| t.parse().ok())
-        .collect();
-    let data = if numbers.len() == 9 {
-        numbers
-    } else {
-        let node = yaml_lite::parse(&bytes, &Limits::default()).map_err(|e| e.in_file(path))?;
-        let m = node
-            .entries()
-            .iter()
-            .find_map(|(_, n)| n.as_matrix().ok().filter(|m| m.rows == 3 && m.cols == 3))
-            .with_context(|| {
-                format!(
-                    "{}: expected 9 numbers or an OpenCV YAML 3x3 matrix",
-                    path.display()
-                )
-            })?;
-        m.data
-    };
-    let mut h = [0.0; 9];
-    h.copy_from_slice(data.get(..9).context("expected 9 values")?);
-    Ok(h)
 }
 
 pub fn run(action: &FeaturesAction, json: bool) -> anyhow::Result<Outcome> {
@@ -88,9 +58,16 @@ pub fn run(action: &FeaturesAction, json: bool) -> anyhow::Result<Outcome> {
             let d: Detector = detector.parse()?;
             let (a, b) = (load(image_a)?, load(image_b)?);
             let h = match (h, same_pose) {
-                (Some(p), _) => homography(p)?,
+                (Some(p), _) => {
+                    homography::read_path(&crate::paths::absolute(p)?, &Limits::default())?
+                }
                 (None, true) => [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-                (None, false) => bail!("give --homography FILE or --same-pose"),
+                (None, false) => bail!(
+                    "`features repeat` needs to know how pixels of A map to B: give \
+                     --homography FILE (FILE holding {}) or --same-pose (both images taken from \
+                     the same pose)",
+                    homography::ACCEPTED
+                ),
             };
             let pts = |img: &GreyF32| -> Vec<[f64; 2]> {
                 features::detect(img, d, &params)

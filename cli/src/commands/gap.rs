@@ -36,7 +36,7 @@ pub fn run(
         keep_images: report.is_some(),
         ..GapOptions::default()
     };
-    let progress = Progress::new(json);
+    let progress = Progress::new();
     let result = gap::run_observed(&view, entry, &opts, &|step, f| progress.report(step, f))?;
     let seconds = progress.finish();
     let applied = if apply_model && !result.named.is_empty() {

@@ -10,18 +10,21 @@ mod gap;
 mod gc;
 mod inspect;
 mod release;
+mod shell_support;
 mod validate;
 mod verify;
 
 use crate::args::{Cli, Command};
+use crate::paths::{absolute as abs, absolute_opt as abs_opt};
 use crate::Outcome;
 
-/// Runs the parsed command.
+/// Runs the parsed command. Every path argument goes through [`crate::paths`] first, so each
+/// command sees an absolute path whatever form the user typed.
 pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
     match &cli.command {
-        Command::Verify { db } => verify::run(db, cli.json),
+        Command::Verify { db } => verify::run(&abs(db)?, cli.json),
         Command::Inspect { db, release, entry } => {
-            inspect::run(db, release.as_deref(), entry.as_deref(), cli.json)
+            inspect::run(&abs(db)?, release.as_deref(), entry.as_deref(), cli.json)
         }
         Command::Export {
             db,
@@ -29,14 +32,14 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             entry,
             to,
             profile,
-        } => export::run(db, release, entry, to, *profile, cli.json),
-        Command::Gc { db } => gc::run(db, cli.json),
+        } => export::run(&abs(db)?, release, entry, &abs(to)?, *profile, cli.json),
+        Command::Gc { db } => gc::run(&abs(db)?, cli.json),
         Command::Control {
             db,
             release,
             entry,
             texture_blur_m,
-        } => control::run(db, release, entry, *texture_blur_m, cli.json),
+        } => control::run(&abs(db)?, release, entry, *texture_blur_m, cli.json),
         Command::Gap {
             db,
             release,
@@ -47,14 +50,14 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             min_share,
             report,
         } => gap::run(
-            db,
+            &abs(db)?,
             release,
             entry,
             captures,
             cameras,
             *apply,
             *min_share,
-            report.as_deref(),
+            abs_opt(report.as_deref())?.as_deref(),
             cli.json,
         ),
         Command::Release {
@@ -62,7 +65,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             release,
             publish,
             allow_uncertified,
-        } => release::run(db, release, *publish, *allow_uncertified, cli.json),
+        } => release::run(&abs(db)?, release, *publish, *allow_uncertified, cli.json),
         Command::Validate {
             db,
             release,
@@ -71,12 +74,12 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             thresholds,
             report,
         } => validate::run(
-            db,
+            &abs(db)?,
             release,
             entry,
             detector,
-            thresholds.as_deref(),
-            report.as_deref(),
+            abs_opt(thresholds.as_deref())?.as_deref(),
+            abs_opt(report.as_deref())?.as_deref(),
             cli.json,
         ),
         Command::Compile {
@@ -85,15 +88,17 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             release,
             check,
         } => compile::run(
-            campaign,
+            &abs(campaign)?,
             *check,
-            db.as_deref(),
+            abs_opt(db.as_deref())?.as_deref(),
             release.as_deref(),
             cli.json,
         ),
         Command::Corpus { action } => corpus::run(action, cli.json),
         Command::Features { action } => features::run(action, cli.json),
-        Command::Demo { campaign, out } => demo::run(campaign, out, cli.json),
+        Command::Completions { shell } => shell_support::completions(*shell),
+        Command::Manpage { dir } => shell_support::manpage(abs_opt(dir.as_deref())?.as_deref()),
+        Command::Demo { campaign, out } => demo::run(&abs(campaign)?, &abs(out)?, cli.json),
     }
 }
 

@@ -52,6 +52,10 @@ pub fn run(
         "release {} has no heightfield or mesh entry to validate",
         view.label()
     );
+    // Every entry named must exist before the first certificate is written.
+    for name in &names {
+        view.entry(name)?;
+    }
     let writer = Writer::create_or_open(db)?;
     let mut html = match report {
         Some(dir) => Some(
@@ -66,7 +70,7 @@ pub fn run(
     let validator = Validator::new(&view, opts)?;
     // Progress counts views: each entry is rendered and compared at every camera of every capture.
     let total = (names.len() * validator.views().len()).max(1) as f64;
-    let progress = Progress::new(json);
+    let progress = Progress::new();
     let done = AtomicUsize::new(0);
     for (k, name) in names.iter().enumerate() {
         let step = format!("validating {name} ({}/{})", k + 1, names.len());

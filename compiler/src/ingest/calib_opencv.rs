@@ -30,7 +30,9 @@ use regolith_format::frames::Pose;
 use regolith_format::limits::Limits;
 
 use super::yaml_lite::{self, Matrix, Node, Value};
-use super::{calib_bouguet, calib_bouguet_mat, calib_kalibr, calib_ros, markers, opencv_json};
+use super::{
+    calib_bouguet, calib_bouguet_mat, calib_kalibr, calib_ros, markers, opencv_json, opencv_storage,
+};
 use crate::error::{IngestError, Result};
 
 const K_ALIASES: &[&str] = &[
@@ -83,67 +85,9 @@ pub fn read_path(path: &Path, limits: &Limits) -> Result<OpencvCalibration> {
     yaml_lite::read_with(path, limits, |b| parse(b, limits))
 }
 
-/// Parses YAML, XML (detected by a leading `<`) or JSON (a leading `{`).
+/// Parses YAML, XML or JSON ([`opencv_storage::parse`]) and interprets the calibration.
 pub fn parse(bytes: &[u8], limits: &Limits) -> Result<OpencvCalibration> {
-    let root = if is_xml(bytes) {
-        xml_tree(bytes, limits)?
-    } else if opencv_json::is_json(bytes) {
-        opencv_json::parse(bytes, limits)?
-    } else {
-        yaml_lite::parse(bytes, limits)?
-    };
-    interpret(&root)
-}
-
-fn is_xml(bytes: &[u8]) -> bool {
-    let t = yaml_lite::decode_text(bytes).unwrap_or("");
-    t.trim_start().starts_with('<')
-}
-
-/// Converts `<opencv_storage>` into a node tree: matrices become `{rows, cols, dt, data}`
-/// maps, elements with children become maps, others scalars.
-fn xml_tree(bytes: &[u8], limits: &Limits) -> Result<Node> {
-    Limits::check_len("XML bytes", bytes.len() as u64, limits.max_object_bytes)?;
-    let text = yaml_lite::decode_text(bytes)?;
-    let doc = roxmltree::Document::parse(text).map_err(|e| {
-        IngestError::syntax("well-formed XML", &e.to_string()).at_line(u64::from(e.pos().row))
-    })?;
-    let root = doc.root_element();
-    if root.tag_name().name() != "opencv_storage" {
-        return Err(IngestError::syntax("<opencv_storage>", root.tag_name().name()).at_line(1));
-    }
-    Ok(xml_node(&doc, root, 0))
-}
-
-fn xml_node(doc: &roxmltree::Document<'_>, el: roxmltree::Node<'_, '_>, depth: usize) -> Node {
-    let line = u64::from(doc.text_pos_at(el.range().start).row);
-    let children: Vec<_> = el.children().filter(roxmltree::Node::is_element).collect();
-    let text = el.text().unwrap_or("").trim();
-    let value = if el.tag_name().name() == "data"
-        && el
-            .parent_element()
-            .is_some_and(|p| p.attribute("type_id").is_some())
-    {
-        let items = text.split_whitespace().map(|t| Node {
-            line,
-            tag: None,
-            value: Value::Scalar(t.into()),
-        });
-        Value::Seq(items.collect())
-    } else if children.is_empty() || depth > 32 {
-        Value::Scalar(text.to_string())
-    } else {
-        let mut entries: Vec<(String, Node)> = Vec::new();
-        for c in children {
-            let name = c.tag_name().name().to_string();
-            if !entries.iter().any(|(k, _)| *k == name) {
-                entries.push((name, xml_node(doc, c, depth + 1)));
-            }
-        }
-        Value::Map(entries)
-    };
-    let tag = el.attribute("type_id").map(str::to_string);
-    Node { line, tag, value }
+    interpret(&opencv_storage::parse(bytes, limits)?)
 }
 
 /// Builds the cameras and stereo extrinsics of a parsed FileStorage root.
@@ -430,7 +374,8 @@ pub fn detect_format(path: &Path, bytes: &[u8], limits: &Limits) -> Result<Calib
     if ext == "mat" || bytes.starts_with(b"MATLAB ") {
         return Ok(CalibrationFormat::BouguetMat);
     }
-    if ext == "xml" || ext == "json" || is_xml(bytes) || opencv_json::is_json(bytes) {
+    if ext == "xml" || ext == "json" || opencv_storage::is_xml(bytes) || opencv_json::is_json(bytes)
+    {
         return Ok(CalibrationFormat::Opencv);
     }
     let root = yaml_lite::parse(bytes, limits)?;

@@ -242,6 +242,9 @@ pub fn parse(bytes: &[u8], limits: &Limits) -> Result<Node> {
     Limits::check_len("YAML bytes", bytes.len() as u64, limits.max_object_bytes)?;
     let text = decode_text(bytes)?;
     let mut lines = Vec::new();
+    // Open `[`/`{` of a flow collection spanning lines: its continuation lines are not block
+    // indentation, and OpenCV's data blocks may be indented with tabs there.
+    let mut flow_depth = 0i64;
     for (i, raw) in text.lines().enumerate() {
         let no = i as u64 + 1;
         let body = strip_comment(raw).trim_end();
@@ -252,7 +255,10 @@ pub fn parse(bytes: &[u8], limits: &Limits) -> Result<Node> {
         if trimmed == "..." {
             break;
         }
-        if body.contains('\t')
+        let continuation = flow_depth > 0;
+        flow_depth = (flow_depth + bracket_depth(trimmed)).max(0);
+        if !continuation
+            && body.contains('\t')
             && body.starts_with(|c: char| c.is_whitespace())
             && !body.starts_with(' ')
         {
@@ -538,6 +544,11 @@ fn unquote(s: &str) -> &str {
 
 /// True when every `[`/`{` outside quotes is closed (or over-closed: the flow parser reports it).
 fn balanced(text: &str) -> bool {
+    bracket_depth(text) <= 0
+}
+
+/// Opened minus closed `[`/`{` outside quotes.
+fn bracket_depth(text: &str) -> i64 {
     let mut depth = 0i64;
     let mut quote = None;
     for c in text.chars() {
@@ -549,7 +560,7 @@ fn balanced(text: &str) -> bool {
             _ => {}
         }
     }
-    depth <= 0
+    depth
 }
 
 /// Recursive-descent parser of one flow value (which may span joined lines).
