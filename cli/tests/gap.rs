@@ -3,6 +3,8 @@
 //! into a child release that `inspect` shows.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -100,6 +102,7 @@ fn hidden_noise_is_named_fitted_and_applied() {
         "--report",
         report.to_str().unwrap(),
     ]);
+    common::assert_matches_doc_schema("gap", &v);
     // The report page links charts that exist and decode.
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert!(html.contains("noise"));
@@ -349,6 +352,7 @@ fn the_demo_finds_its_hidden_vignetting_and_shrinks_the_gap() {
         "--out",
         dir.path().to_str().unwrap(),
     ]);
+    common::assert_matches_doc_schema("demo", &v);
     let gap = &v["gap"];
     let truth = gap["hidden_truth"][0]["strength"].as_f64().unwrap();
     let fitted = gap["named"][0]["params"]["strength"].as_f64().unwrap();

@@ -37,6 +37,7 @@ fn validate_in(db: &str, release: &str, entry: &str) -> Value {
         out.status.code(),
         Some(if v["passed"] == true { 0 } else { 1 })
     );
+    common::assert_matches_doc_schema("validate", &v);
     v["entries"][0].clone()
 }
 
