@@ -27,8 +27,8 @@ use crate::encode::{heightfield, png, terrain, EncodeError};
 use crate::error::IngestError;
 use crate::ingest::campaign::{Align, Campaign, Registration, Terrain, TerrainSource, Texture};
 use crate::ingest::types::{NamedPoint, PointCloud};
-use crate::ingest::{gcp, markers, sop_dat, tiepoints, vicon_csv};
-use crate::inventory::{load_reconstruction, load_scan};
+use crate::ingest::{gcp, markers, vicon_csv};
+use crate::inventory::{load_reconstruction, load_scan, load_sop, load_tiepoints};
 use crate::stage::{Stage, StageCx, StageError};
 use crate::stages::captures::BuildCaptures;
 use crate::stages::dem_raster::{DemRaster, MaxEdge, Raster};
@@ -54,6 +54,22 @@ pub enum CompileError {
     /// Writing the database failed.
     #[error(transparent)]
     Store(#[from] ReaderError),
+    /// The release name and version are taken by a release compiled from other inputs.
+    #[error(
+        "release {label} already exists in this database (id {id}) and was compiled from other \
+         inputs ({changed}); releases are immutable: compile a new version with `--release \
+         {next}`"
+    )]
+    ReleaseExists {
+        /// `name@version`.
+        label: String,
+        /// The existing release's short id.
+        id: String,
+        /// Which inputs differ (`changed: campaign.toml, scans/pos1.asc`).
+        changed: String,
+        /// A free `name@version` to suggest.
+        next: String,
+    },
 }
 
 /// Compile options.
@@ -248,13 +264,13 @@ fn laser_terrain(
         let tp = match &s.registration {
             Registration::Tiepoints(p) => ScanTiepoints {
                 scan: s.name.clone(),
-                tiepoints: tiepoints::read_path(&c.root.join(p), &opts.limits)?,
+                tiepoints: load_tiepoints(&c.root, s, p, &opts.limits)?,
                 sop: None,
             },
             Registration::Sop(p) => ScanTiepoints {
                 scan: s.name.clone(),
                 tiepoints: Vec::new(),
-                sop: Some(sop_dat::read_path(&c.root.join(p), &opts.limits)?),
+                sop: Some(load_sop(&c.root, s, p, &opts.limits)?),
             },
         };
         clouds.push((s.name.clone(), cloud, tp));
@@ -265,7 +281,28 @@ fn laser_terrain(
         markers: markers.to_vec(),
         scans: clouds.iter().map(|c| c.2.clone()).collect(),
     };
-    let regs = reg.run(&ctx.cx, &input)?;
+    let regs = reg.run(&ctx.cx, &input).map_err(|e| {
+        // The stage names the scan (`scan pos1: ...`); add the files behind it.
+        let scan = scans
+            .iter()
+            .filter_map(|&i| c.scans.get(i))
+            .find(|s| e.message.starts_with(&format!("scan {}:", s.name)));
+        match scan {
+            Some(s) => {
+                let (Registration::Tiepoints(f) | Registration::Sop(f)) = &s.registration;
+                StageError::new(
+                    e.stage,
+                    format!(
+                        "{} (registration {}, ground markers {})",
+                        e.message,
+                        f.display(),
+                        c.ground_markers.display()
+                    ),
+                )
+            }
+            None => e,
+        }
+    })?;
     ctx.record(&reg);
     ctx.lap(RegisterTiepoints::NAME);
     let icp = RegisterIcp::default();
@@ -737,8 +774,97 @@ fn cache_key(inputs: &[InputFile], opts: &CompileOptions) -> String {
     ObjectId::of_bytes(regolith_format::canonical_json::to_string(&v).as_bytes()).to_hex()
 }
 
-/// Compiles a campaign into a new release of the database `writer` holds.
+/// Compiles a campaign into a new release of the database `writer` holds. A compile that fails
+/// leaves the database as it was: the objects it stored before failing are taken back
+/// ([`Writer::roll_back`]).
 pub fn compile(
+    c: &Campaign,
+    writer: &Writer,
+    opts: &CompileOptions,
+    progress: &dyn Fn(&str, f64),
+) -> Result<CompileSummary, CompileError> {
+    let result = compile_unchecked(c, writer, opts, progress);
+    if result.is_err() {
+        // Best effort: the compile's own error is the one to report.
+        let _ = writer.roll_back();
+    }
+    result
+}
+
+/// Refuses early (before any work) a `name@version` already taken by a release of other inputs,
+/// which the commit at the end would refuse anyway.
+fn check_label_free(
+    writer: &Writer,
+    opts: &CompileOptions,
+    inputs: &[InputFile],
+) -> Result<(), CompileError> {
+    let db = writer.database();
+    let label = format!("{}@{}", opts.name, opts.version);
+    let taken = |l: &str| -> Option<ObjectId> {
+        db.read_ref(&format!(
+            "{}{l}",
+            regolith_reader::database::RELEASES_PREFIX
+        ))
+        .unwrap_or(None)
+    };
+    let Some(existing) = taken(&label) else {
+        return Ok(());
+    };
+    let Ok(view) = db.release_by_id(&existing) else {
+        return Ok(()); // unreadable: the commit will say what is wrong
+    };
+    let old = &view.manifest.campaign.inputs;
+    if old.len() == inputs.len() && inputs.iter().all(|f| old.contains(f)) {
+        return Ok(()); // the same inputs: the commit decides (same manifest, or another version)
+    }
+    let mut changed: Vec<&str> = inputs
+        .iter()
+        .filter(|f| !old.contains(f))
+        .chain(
+            old.iter()
+                .filter(|f| !inputs.iter().any(|n| n.path == f.path)),
+        )
+        .map(|f| f.path.as_str())
+        .collect();
+    changed.sort_unstable();
+    changed.dedup();
+    let changed = if changed.is_empty() {
+        "other inputs".to_string()
+    } else if changed.len() > 5 {
+        let first: Vec<&str> = changed.iter().take(5).copied().collect();
+        format!(
+            "changed: {} and {} more",
+            first.join(", "),
+            changed.len() - 5
+        )
+    } else {
+        format!("changed: {}", changed.join(", "))
+    };
+    // The next free version: x.y.z → x.y.(z+1), anything else → <version>.1, .2, ...
+    let bump = |v: &str, k: u64| -> String {
+        match v.rsplit_once('.') {
+            Some((head, last)) if last.parse::<u64>().is_ok() && head.split('.').count() == 2 => {
+                format!("{head}.{}", last.parse::<u64>().unwrap_or(0) + k)
+            }
+            _ => format!("{v}.{k}"),
+        }
+    };
+    let mut next = format!("{}@{}", opts.name, bump(&opts.version, 1));
+    for k in 2..1000 {
+        if taken(&next).is_none() {
+            break;
+        }
+        next = format!("{}@{}", opts.name, bump(&opts.version, k));
+    }
+    Err(CompileError::ReleaseExists {
+        label,
+        id: existing.short(),
+        changed,
+        next,
+    })
+}
+
+fn compile_unchecked(
     c: &Campaign,
     writer: &Writer,
     opts: &CompileOptions,
@@ -769,6 +895,9 @@ pub fn compile(
             });
         }
     }
+    // Cheap checks first, so a mistake stops the compile before minutes of work.
+    check_label_free(writer, opts, &inputs)?;
+    crate::stages::captures::check_image_sizes(c)?;
     let mut ctx = Ctx {
         writer,
         cx: StageCx::default(),

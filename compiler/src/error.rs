@@ -36,6 +36,24 @@ pub enum IngestError {
         /// The underlying error.
         err: Box<IngestError>,
     },
+    /// The error is about the place in the file where `needle` appears (a key or a value of
+    /// `campaign.toml`, found by [`IngestError::near`]'s caller, which knows the text, and
+    /// turned into [`IngestError::AtLine`]); shown as the underlying error until then.
+    #[error("{err}")]
+    Near {
+        /// The text to look for (e.g. `"scans/pos1_tiepoints.csv"`, quotes included).
+        needle: String,
+        /// The underlying error.
+        err: Box<IngestError>,
+    },
+    /// The error concerns this part of the campaign (`[[scan]] "pos1" tiepoints`).
+    #[error("{context}: {err}")]
+    Context {
+        /// What the file is to the campaign.
+        context: String,
+        /// The underlying error.
+        err: Box<IngestError>,
+    },
     /// Input did not match the grammar.
     #[error("expected {expected}, found {found}")]
     Syntax {
@@ -78,6 +96,36 @@ impl IngestError {
         IngestError::AtOffset {
             offset,
             err: Box::new(self),
+        }
+    }
+    /// Prefixes the error with what the file is to the campaign (`[[scan]] "pos1" tiepoints`).
+    pub fn context(self, context: impl Into<String>) -> IngestError {
+        IngestError::Context {
+            context: context.into(),
+            err: Box::new(self),
+        }
+    }
+    /// Marks the error as being about the place where `needle` appears in the file; see
+    /// [`IngestError::locate`].
+    pub fn near(self, needle: impl Into<String>) -> IngestError {
+        IngestError::Near {
+            needle: needle.into(),
+            err: Box::new(self),
+        }
+    }
+    /// Turns a [`IngestError::Near`] into the line of `text` holding its needle (the first
+    /// occurrence; no line when the needle does not occur). Other errors are returned as they
+    /// are.
+    pub fn locate(self, text: &str) -> IngestError {
+        match self {
+            IngestError::Near { needle, err } => match text.find(&needle) {
+                Some(at) => {
+                    let line = text.get(..at).unwrap_or("").matches('\n').count() as u64 + 1;
+                    (*err).at_line(line)
+                }
+                None => *err,
+            },
+            other => other,
         }
     }
     /// A syntax error; `found` is quoted and truncated to 40 characters.

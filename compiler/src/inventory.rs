@@ -60,6 +60,28 @@ pub fn load_scan(root: &Path, s: &Scan, limits: &Limits) -> Result<PointCloud> {
     }
 }
 
+/// Reads a scan's tie points; errors name the scan (`[[scan]] "pos1" tiepoints: ...`).
+pub fn load_tiepoints(
+    root: &Path,
+    s: &Scan,
+    file: &Path,
+    limits: &Limits,
+) -> Result<Vec<crate::ingest::types::NamedPoint>> {
+    tiepoints::read_path(&root.join(file), limits)
+        .map_err(|e| e.context(format!("[[scan]] {:?} tiepoints", s.name)))
+}
+
+/// Reads a scan's SOP matrix; errors name the scan (`[[scan]] "pos1" sop: ...`).
+pub fn load_sop(
+    root: &Path,
+    s: &Scan,
+    file: &Path,
+    limits: &Limits,
+) -> Result<crate::ingest::types::Matrix4> {
+    sop_dat::read_path(&root.join(file), limits)
+        .map_err(|e| e.context(format!("[[scan]] {:?} sop", s.name)))
+}
+
 /// Reads a reconstruction mesh (VRML or PLY) in its own frame.
 pub fn load_reconstruction(
     root: &Path,
@@ -157,11 +179,11 @@ pub fn inventory(c: &Campaign, limits: &Limits) -> Result<Inventory> {
         ));
         match &s.registration {
             Registration::Tiepoints(p) => jobs.push((p.clone(), "tiepoints", "csv".into(), Box::new(move || {
-                let t = tiepoints::read_path(&root.join(p), limits)?;
+                let t = load_tiepoints(root, s, p, limits)?;
                 Ok(serde_json::json!({"tiepoints": t.len(), "names": t.iter().map(|n| n.name.clone()).collect::<Vec<_>>()}))
             }))),
             Registration::Sop(p) => jobs.push((p.clone(), "sop", "riegl-dat".into(), Box::new(move || {
-                Ok(serde_json::json!({"matrix": sop_dat::read_path(&root.join(p), limits)?}))
+                Ok(serde_json::json!({"matrix": load_sop(root, s, p, limits)?}))
             }))),
         }
     }

@@ -77,10 +77,16 @@ impl Database {
     pub fn open(path: impl AsRef<Path>) -> Result<Database> {
         let root = path.as_ref().to_path_buf();
         let marker = root.join(MARKER);
-        let bytes =
-            fs::read(&marker).map_err(|_| ReaderError::NotADatabase { path: root.clone() })?;
-        let v: serde_json::Value = serde_json::from_slice(&bytes)
-            .map_err(|_| ReaderError::NotADatabase { path: root.clone() })?;
+        let not_db = |reason: String| ReaderError::NotADatabase {
+            path: root.clone(),
+            reason,
+        };
+        let bytes = fs::read(&marker).map_err(|_| not_db(why_not_a_database(&root)))?;
+        let v: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| {
+            not_db(format!(
+                "its `{MARKER}` marker is not the JSON a database writes ({e})"
+            ))
+        })?;
         let schema = v.get("schema").and_then(|s| s.as_str()).unwrap_or_default();
         regolith_format::manifest::check_schema(schema)
             .map_err(ReaderError::format(marker.display().to_string()))?;
@@ -142,29 +148,54 @@ impl Database {
         if spec.len() >= 6 && spec.bytes().all(|b| b.is_ascii_hexdigit()) {
             let mut hits: Vec<ObjectId> = self
                 .refs()?
-                .into_values()
-                .filter(|id| id.to_hex().starts_with(spec))
+                .into_iter()
+                .filter(|(name, id)| !is_object_ref(name) && id.to_hex().starts_with(spec))
+                .map(|(_, id)| id)
                 .collect();
             hits.sort();
             hits.dedup();
             return match hits.as_slice() {
                 [one] => Ok(*one),
-                [] => Err(ReaderError::UnknownRelease {
-                    spec: spec.to_string(),
-                }),
+                [] => Err(self.unknown_release(spec)),
                 _ => Err(ReaderError::AmbiguousRelease {
                     spec: spec.to_string(),
                 }),
             };
         }
-        Err(ReaderError::UnknownRelease {
+        Err(self.unknown_release(spec))
+    }
+
+    /// The error for a release spec that names nothing, listing what the database has: every
+    /// `name@version`, then the other refs that name releases (`latest`, `published/...`;
+    /// not the compile cache's).
+    fn unknown_release(&self, spec: &str) -> ReaderError {
+        let refs = self.refs().unwrap_or_default();
+        let labels = refs
+            .keys()
+            .filter_map(|k| k.strip_prefix(RELEASES_PREFIX))
+            .map(str::to_string);
+        let others = refs
+            .keys()
+            .filter(|k| {
+                !k.starts_with(RELEASES_PREFIX) && !is_object_ref(k) && !k.starts_with("cache/")
+            })
+            .cloned();
+        ReaderError::UnknownRelease {
             spec: spec.to_string(),
-        })
+            known: labels.chain(others).collect(),
+        }
     }
 
     /// Loads a release by any spec accepted by [`Database::resolve`].
     pub fn release(&self, spec: &str) -> Result<ReleaseView> {
         let id = self.resolve(spec)?;
+        if !crate::object::object_path(&self.root, &id).is_file()
+            && !self.refs()?.values().any(|r| *r == id)
+        {
+            // A full id that names no stored release (a typo of one character, an id of
+            // another database): say so, rather than "object missing", which means corruption.
+            return Err(self.unknown_release(spec));
+        }
         self.release_by_id(&id)
     }
 
@@ -213,6 +244,46 @@ impl Database {
             manifest,
         })
     }
+}
+
+/// Why `root` is not a database, for [`ReaderError::NotADatabase`]: what is there instead, and
+/// the database right below it when there is one (`out/demo` for `out/demo/db`).
+fn why_not_a_database(root: &Path) -> String {
+    match fs::metadata(root) {
+        Err(_) => return "no such folder".to_string(),
+        Ok(m) if !m.is_dir() => return "it is a file, not a folder".to_string(),
+        Ok(_) => {}
+    }
+    let Ok(rd) = fs::read_dir(root) else {
+        return "the folder cannot be read".to_string();
+    };
+    let mut children: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
+    if children.is_empty() {
+        return "the folder is empty".to_string();
+    }
+    children.sort();
+    let below: Vec<String> = children
+        .iter()
+        .filter(|c| c.join(MARKER).is_file())
+        .map(|c| c.display().to_string())
+        .collect();
+    if !below.is_empty() {
+        return match below.as_slice() {
+            [one] => {
+                format!("it has no `{MARKER}` marker, but the folder below it is one: give {one}")
+            }
+            _ => format!(
+                "it has no `{MARKER}` marker, but folders below it are: give one of {}",
+                below.join(", ")
+            ),
+        };
+    }
+    if root.join("campaign.toml").is_file() {
+        return "it is a campaign folder (it holds campaign.toml): compile it into a database \
+                with `regolith compile CAMPAIGN --db DB` and give DB"
+            .to_string();
+    }
+    format!("the folder has no `{MARKER}` marker file")
 }
 
 fn walk_refs(dir: &Path, prefix: &str, out: &mut BTreeMap<String, ObjectId>) -> Result<()> {
@@ -265,6 +336,7 @@ impl ReleaseView {
             .ok_or_else(|| ReaderError::NoSuchEntry {
                 release: self.label(),
                 entry: name.to_string(),
+                known: self.entries().iter().map(|e| e.name.clone()).collect(),
             })
     }
 

@@ -25,16 +25,40 @@ pub enum ReaderError {
         path: PathBuf,
     },
     /// The folder is not a regolith database.
-    #[error("not a regolith database: no readable `regolith.db` marker ({})", path.display())]
+    #[error(
+        "{} is not a regolith database: {reason}; a database is the folder `regolith compile \
+         CAMPAIGN --db DB` creates (compile a campaign into it first, or give the folder of an \
+         existing database)",
+        path.display()
+    )]
     NotADatabase {
         /// The folder.
         path: PathBuf,
+        /// What is there instead (no such folder, a file, no `regolith.db` marker...), with a
+        /// hint when a database sits right below it.
+        reason: String,
+    },
+    /// A new database was to be created in a folder that holds other files.
+    #[error(
+        "{} is neither a regolith database nor empty (it holds {}): a new database needs a \
+         folder of its own; give a new folder name (it is created) or an empty folder",
+        path.display(),
+        found_files(found)
+    )]
+    NotEmpty {
+        /// The folder.
+        path: PathBuf,
+        /// What is in it, sorted.
+        found: Vec<String>,
     },
     /// No release matches the given name, version, id or ref.
-    #[error("no release matches {spec:?} (try `regolith inspect DB` to list releases)")]
+    #[error("no release matches {spec:?}; {}", known_releases(known))]
     UnknownRelease {
         /// What the user asked for.
         spec: String,
+        /// The releases (`name@version`) and other refs (`latest`, `published/...`) the
+        /// database has, for the message.
+        known: Vec<String>,
     },
     /// A release id prefix matches several releases.
     #[error("release id prefix {spec:?} is ambiguous")]
@@ -43,12 +67,18 @@ pub enum ReaderError {
         spec: String,
     },
     /// The release has no entry of that name.
-    #[error("release {release} has no entry {entry:?}")]
+    #[error(
+        "release {release} has no entry {entry:?}; its entries are: {} (`regolith inspect DB \
+         {release}` lists them with their kinds)",
+        known.join(", ")
+    )]
     NoSuchEntry {
         /// Release label.
         release: String,
         /// Entry name.
         entry: String,
+        /// The entries the release has, sorted.
+        known: Vec<String>,
     },
     /// The entry has no file with that role.
     #[error("entry {entry:?} has no file with role {role:?}")]
@@ -141,6 +171,29 @@ impl ReaderError {
     pub(crate) fn format(context: impl Into<String>) -> impl FnOnce(FormatError) -> ReaderError {
         let context = context.into();
         move |source| ReaderError::Format { context, source }
+    }
+}
+
+/// The tail of [`ReaderError::UnknownRelease`]: what the database does hold.
+fn known_releases(known: &[String]) -> String {
+    if known.is_empty() {
+        return "the database holds no release yet: compile one with `regolith compile CAMPAIGN \
+                --db DB`"
+            .to_string();
+    }
+    format!(
+        "the database has: {} (a release is named `name@version`, by a ref such as `latest`, or \
+         by an id prefix of at least 6 hex digits; `regolith inspect DB` lists them)",
+        known.join(", ")
+    )
+}
+
+/// The first few names of a folder's listing, for [`ReaderError::NotEmpty`].
+fn found_files(found: &[String]) -> String {
+    let first: Vec<&str> = found.iter().take(4).map(String::as_str).collect();
+    match found.len() {
+        n if n > 4 => format!("{} and {} more", first.join(", "), n - 4),
+        _ => first.join(", "),
     }
 }
 

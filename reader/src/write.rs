@@ -21,6 +21,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 
 use regolith_format::manifest::{check_name, MANIFEST_MEDIA_TYPE};
 use regolith_format::{canonical_json, FileRef, ObjectId, Release, SCHEMA};
@@ -45,6 +46,8 @@ fn failpoint(step: &str) {
 pub struct Writer {
     db: Database,
     _lock: File,
+    /// Object files and fan-out folders this writer created, in order (see [`Writer::roll_back`]).
+    created: Mutex<Vec<PathBuf>>,
 }
 
 /// What `gc` removed.
@@ -60,8 +63,28 @@ pub struct GcReport {
 
 impl Writer {
     /// Opens a database for writing, creating it if the folder is empty or absent.
+    /// A folder holding other files is refused ([`ReaderError::NotEmpty`]): a database among a
+    /// campaign's or a project's files would be mixed up with them.
     pub fn create_or_open(path: impl AsRef<Path>) -> Result<Writer> {
         let root = path.as_ref().to_path_buf();
+        if !root.join(MARKER).exists() {
+            // Only what this function creates may be there already (an interrupted creation).
+            const SKELETON: [&str; 5] = ["objects", "refs", "logs", "tmp", "lock"];
+            let mut others: Vec<String> = fs::read_dir(&root)
+                .into_iter()
+                .flatten()
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| !SKELETON.contains(&n.as_str()))
+                .collect();
+            if !others.is_empty() {
+                others.sort();
+                return Err(ReaderError::NotEmpty {
+                    path: root,
+                    found: others,
+                });
+            }
+        }
         for d in ["objects/sha256", "refs/releases", "logs", "tmp"] {
             let p = root.join(d);
             fs::create_dir_all(&p).map_err(ReaderError::io("creating", &p))?;
@@ -92,7 +115,43 @@ impl Writer {
             write_atomic(&root, &marker, body.as_bytes())?;
         }
         let db = Database::open(&root)?;
-        Ok(Writer { db, _lock: lock })
+        Ok(Writer {
+            db,
+            _lock: lock,
+            created: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// Takes back what a failed operation stored: removes every object this writer created
+    /// that no ref reaches (and the fan-out folders it created for them, when empty again), so
+    /// the object store is as it was before. Objects that were there already and everything a
+    /// ref reaches (a committed release, a certificate) are kept, so this is safe to call after
+    /// any failure. Returns how many objects were removed.
+    pub fn roll_back(&self) -> Result<usize> {
+        let created = std::mem::take(
+            &mut *self
+                .created
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner),
+        );
+        if created.is_empty() {
+            return Ok(0);
+        }
+        let reachable: BTreeSet<PathBuf> = reachable_objects(&self.db)?
+            .iter()
+            .map(|id| object_path(self.db.root(), id))
+            .collect();
+        let mut removed = 0;
+        for path in created.iter().rev() {
+            if path.is_dir() {
+                // Only removed when empty: a fan-out folder still holding objects stays.
+                let _ = fs::remove_dir(path);
+            } else if !reachable.contains(path) {
+                fs::remove_file(path).map_err(ReaderError::io("removing", path))?;
+                removed += 1;
+            }
+        }
+        Ok(removed)
     }
 
     /// The database being written (for reads during a write session).
@@ -105,10 +164,19 @@ impl Writer {
         let id = ObjectId::of_bytes(bytes);
         let path = object_path(self.db.root(), &id);
         if !path.exists() {
+            let mut created = Vec::new();
             if let Some(parent) = path.parent() {
+                if !parent.is_dir() {
+                    created.push(parent.to_path_buf());
+                }
                 fs::create_dir_all(parent).map_err(ReaderError::io("creating", parent))?;
             }
             write_atomic(self.db.root(), &path, bytes)?;
+            created.push(path.clone());
+            self.created
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .extend(created);
             failpoint("object-renamed");
         }
         Ok(FileRef {

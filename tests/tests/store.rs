@@ -226,3 +226,40 @@ fn gc_removes_only_unreachable_objects() {
     drop(w);
     assert!(verify(&Database::open(dir.path()).unwrap()).unwrap().ok());
 }
+
+#[test]
+fn roll_back_takes_back_only_the_new_unreferenced_objects() {
+    let dir = tempfile::tempdir().unwrap();
+    build(dir.path(), "1.0.0");
+    let listing = |p: &Path| {
+        let mut v: Vec<_> = walk(p);
+        v.sort();
+        v
+    };
+    fn walk(p: &Path) -> Vec<std::path::PathBuf> {
+        let mut out = Vec::new();
+        for e in fs::read_dir(p).unwrap() {
+            let path = e.unwrap().path();
+            if path.is_dir() {
+                out.extend(walk(&path));
+            }
+            out.push(path);
+        }
+        out
+    }
+    let before = listing(dir.path());
+    let w = Writer::create_or_open(dir.path()).unwrap();
+    let stray = w.put(b"a failed compile stored me", "text/plain").unwrap();
+    assert!(dir.path().join(stray.object.object_path()).is_file());
+    // The same bytes again, and an object that was there already: nothing new to take back.
+    w.put(b"a failed compile stored me", "text/plain").unwrap();
+    assert_eq!(w.roll_back().unwrap(), 1);
+    assert_eq!(listing(dir.path()), before, "the store is as it was");
+    // A committed release keeps its objects.
+    let id = sample::build(&w, "1.1.0").unwrap();
+    w.roll_back().unwrap();
+    drop(w);
+    let db = Database::open(dir.path()).unwrap();
+    assert_eq!(db.resolve("sample@1.1.0").unwrap(), id);
+    assert!(verify(&db).unwrap().ok());
+}

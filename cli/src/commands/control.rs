@@ -18,6 +18,7 @@ pub fn run(
 ) -> anyhow::Result<Outcome> {
     let database = Database::open(db)?;
     let view = database.release(release)?;
+    view.entry(entry)?;
     let writer = Writer::create_or_open(db)?;
     let c = blurred_texture(&writer, &view, entry, sigma_m)?;
     if json {

@@ -51,7 +51,11 @@ pub fn run(
             .map(|mut d| d.next().is_some())
             .unwrap_or(true)
     {
-        bail!("output folder {} exists and is not empty", to.display());
+        bail!(
+            "output folder {} exists and is not empty: give a new folder (export creates it, \
+             whole or not at all) or empty this one",
+            to.display()
+        );
     }
     let parent = to
         .parent()

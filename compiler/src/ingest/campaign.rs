@@ -358,11 +358,29 @@ pub fn parse_str(text: &str) -> Result<CampaignToml> {
             text.get(..s.start).unwrap_or("").matches('\n').count() as u64 + 1
         });
         let msg = e.message().to_string();
-        let err = match unknown_field_hint(&msg) {
+        let err = match unknown_field_hint(&msg).or_else(|| missing_field_hint(&msg)) {
             Some(hint) => IngestError::invalid(hint),
             None => IngestError::invalid(msg),
         };
         err.at_line(line)
+    })
+}
+
+/// serde reports "missing field `x`": say what the key holds and where it goes.
+fn missing_field_hint(msg: &str) -> Option<String> {
+    let key = msg.strip_prefix("missing field `")?.strip_suffix('`')?;
+    Some(match key {
+        "schema" => format!(
+            "missing field `schema`: every campaign.toml starts with `schema = \"{SCHEMA}\"` \
+             (the campaign format it is written in); add that line at the top"
+        ),
+        "ground" => "missing field `ground`: add a `[ground]` table with `markers = \"<Vicon \
+                     CSV of the ground markers>\"` and `marker_radius_m = <ball radius, m>`"
+            .to_string(),
+        _ => format!(
+            "missing field `{key}`: add `{key} = ...` here (format-spec/campaign.md lists every \
+             table's required keys)"
+        ),
     })
 }
 
@@ -387,47 +405,106 @@ fn unknown_field_hint(msg: &str) -> Option<String> {
 
 /// Loads and resolves a campaign: `path` is `campaign.toml` or the folder holding it.
 pub fn load(path: &Path) -> Result<Campaign> {
+    let campaign_hint = "give the campaign folder (the folder holding campaign.toml) or its \
+                         campaign.toml";
+    if !path.exists() {
+        return Err(IngestError::invalid(format!(
+            "{}: no such file or folder; {campaign_hint}",
+            path.display()
+        )));
+    }
+    if path.is_dir() && !path.join("campaign.toml").is_file() {
+        let what = if path.join("regolith.db").is_file() {
+            "it is a regolith database, not a campaign".to_string()
+        } else {
+            let below: Vec<String> = std::fs::read_dir(path)
+                .into_iter()
+                .flatten()
+                .flatten()
+                .map(|e| e.path())
+                .filter(|p| p.join("campaign.toml").is_file())
+                .map(|p| p.display().to_string())
+                .collect();
+            match below.as_slice() {
+                [] => "it holds no campaign.toml".to_string(),
+                [one] => format!("it holds no campaign.toml (did you mean {one}?)"),
+                more => format!(
+                    "it holds no campaign.toml (did you mean one of {}?)",
+                    more.join(", ")
+                ),
+            }
+        };
+        return Err(IngestError::invalid(format!(
+            "{} is not a campaign folder: {what}; {campaign_hint}",
+            path.display()
+        )));
+    }
     let file = if path.is_dir() {
         path.join("campaign.toml")
     } else {
         path.to_path_buf()
     };
+    // A bare file name's parent is "", which names no folder: it is the working directory.
     let root = file
         .parent()
+        .filter(|p| !p.as_os_str().is_empty())
         .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
     let bytes = yaml_lite::read_file(&file, &Limits::default()).map_err(|e| e.in_file(&file))?;
     let text = yaml_lite::decode_text(&bytes).map_err(|e| e.in_file(&file))?;
     let low = parse_str(text).map_err(|e| e.in_file(&file))?;
-    resolve(&low, &root).map_err(|e| e.in_file(&file))
+    resolve(&low, &root).map_err(|e| e.locate(text).in_file(&file))
 }
 
 fn bad(msg: String) -> IngestError {
     IngestError::invalid(msg)
 }
 
+/// What to do about a referenced file that is not there (the default of [`file_in`]).
+const MISSING_FILE_HINT: &str = "add the file, or correct the path in campaign.toml (relative \
+                                 to the campaign folder, `/` between folders)";
+
+/// How a scan gets to the ground frame, for errors about its registration.
+const REGISTRATION_HINT: &str = "a scan is registered either by tie points, `tiepoints = \
+     \"<file>.csv\"` with one `Name,X,Y,Z` row per reflector centre in the scanner's own \
+     coordinates, named as the [ground].markers markers (RiSCAN PRO: export the scan \
+     position's TPL), or by a known scanner-to-ground matrix, `sop = \"<file>.DAT\"` (RiSCAN \
+     PRO's SOP export)";
+
 /// Checks a relative path stays inside `root` and names an existing file.
 fn file_in(root: &Path, rel: &str, what: &str) -> Result<PathBuf> {
+    file_in_or(root, rel, what, MISSING_FILE_HINT)
+}
+
+/// [`file_in`], with `hint` saying what to do when the file does not exist. Errors point at the
+/// line of campaign.toml holding the path.
+fn file_in_or(root: &Path, rel: &str, what: &str, hint: &str) -> Result<PathBuf> {
+    let near = |e: IngestError| e.near(format!("{rel:?}"));
     let p = PathBuf::from(rel);
     if rel.is_empty()
         || p.components()
             .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir))
     {
-        return Err(bad(format!(
+        return Err(near(bad(format!(
             "{what} path {rel:?} must be relative and stay inside the campaign folder"
-        )));
+        ))));
     }
     let full = root.join(&p);
-    let canon = full
-        .canonicalize()
-        .map_err(|_| bad(format!("{what} file {rel:?} does not exist")))?;
+    let canon = full.canonicalize().map_err(|_| {
+        near(bad(format!(
+            "{what} file {rel:?} does not exist (looked for {}); {hint}",
+            full.display()
+        )))
+    })?;
     let canon_root = root.canonicalize().map_err(IngestError::from)?;
     if !canon.starts_with(&canon_root) {
-        return Err(bad(format!(
+        return Err(near(bad(format!(
             "{what} path {rel:?} leads outside the campaign folder (symlink)"
-        )));
+        ))));
     }
     if !canon.is_file() {
-        return Err(bad(format!("{what} path {rel:?} is not a file")));
+        return Err(near(bad(format!(
+            "{what} path {rel:?} is not a file; name a file inside the campaign folder"
+        ))));
     }
     Ok(p.components().collect())
 }
@@ -470,7 +547,12 @@ fn positive(what: &str, v: f64) -> Result<()> {
 /// Validates the low structs against the folder `root` and builds the plan.
 pub fn resolve(low: &CampaignToml, root: &Path) -> Result<Campaign> {
     if low.schema != SCHEMA {
-        return Err(bad(format!("schema {:?} is not {SCHEMA:?}", low.schema)));
+        return Err(bad(format!(
+            "schema {:?} is not {SCHEMA:?}: this regolith reads `schema = {SCHEMA:?}` \
+             campaigns (format-spec/campaign.md)",
+            low.schema
+        ))
+        .near("schema"));
     }
     unique("campaign", [&low.name])?;
     positive("[ground].marker_radius_m", low.ground.marker_radius_m)?;
@@ -579,12 +661,29 @@ fn resolve_scan(s: &ScanToml, root: &Path) -> Result<Scan> {
         }
     };
     let registration = match (&s.tiepoints, &s.sop) {
-        (Some(t), None) => Registration::Tiepoints(file_in(root, t, &format!("{what} tiepoints"))?),
-        (None, Some(m)) => Registration::Sop(file_in(root, m, &format!("{what} sop"))?),
-        _ => {
+        (Some(t), None) => Registration::Tiepoints(file_in_or(
+            root,
+            t,
+            &format!("{what} tiepoints"),
+            REGISTRATION_HINT,
+        )?),
+        (None, Some(m)) => Registration::Sop(file_in_or(
+            root,
+            m,
+            &format!("{what} sop"),
+            REGISTRATION_HINT,
+        )?),
+        (None, None) => {
             return Err(bad(format!(
-                "{what}: give exactly one of `tiepoints` and `sop`"
-            )))
+                "{what} has no registration (neither `tiepoints` nor `sop`): {REGISTRATION_HINT}"
+            ))
+            .near(format!("{:?}", s.file)))
+        }
+        (Some(_), Some(_)) => {
+            return Err(bad(format!(
+                "{what}: give exactly one of `tiepoints` and `sop`, not both: {REGISTRATION_HINT}"
+            ))
+            .near(format!("{:?}", s.file)))
         }
     };
     Ok(Scan {
@@ -644,10 +743,14 @@ fn resolve_camera(c: &CameraToml, root: &Path) -> Result<Camera> {
 
 fn resolve_rig(r: &RigToml, root: &Path, cameras: &[Camera]) -> Result<Rig> {
     let index = |n: &str| {
-        cameras
-            .iter()
-            .position(|c| c.name == n)
-            .ok_or_else(|| bad(format!("[rig]: {n:?} is not a [[camera]] name")))
+        cameras.iter().position(|c| c.name == n).ok_or_else(|| {
+            let names: Vec<&str> = cameras.iter().map(|c| c.name.as_str()).collect();
+            bad(format!(
+                "[rig]: {n:?} is not a [[camera]] name (the cameras are: {})",
+                names.join(", ")
+            ))
+            .near(format!("{n:?}"))
+        })
     };
     let (left, right) = (index(&r.left)?, index(&r.right)?);
     if left == right {
@@ -699,9 +802,17 @@ fn resolve_terrain(t: &TerrainToml, scans: &[Scan], recs: &[Reconstruction]) -> 
             (Some(i), _) => si.push(i),
             (_, Some(i)) => ri.push(i),
             _ => {
+                let names: Vec<&str> = scans
+                    .iter()
+                    .map(|s| s.name.as_str())
+                    .chain(recs.iter().map(|r| r.name.as_str()))
+                    .collect();
                 return Err(bad(format!(
-                    "{what}: `from` entry {n:?} names no [[scan]] or [[reconstruction]]"
-                )))
+                    "{what}: `from` entry {n:?} names no [[scan]] or [[reconstruction]] (they \
+                     are: {})",
+                    names.join(", ")
+                ))
+                .near(format!("{n:?}")));
             }
         }
     }

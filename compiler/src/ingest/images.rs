@@ -98,6 +98,26 @@ pub fn read_path(path: &Path, limits: &Limits) -> Result<GreyImage> {
     decode(&bytes, limits).map_err(|e| e.in_file(path))
 }
 
+/// The `(width, height)` of an image file from its header alone (nothing is decoded), for
+/// checks that must be cheap; errors name the file.
+pub fn dimensions_path(path: &Path) -> Result<(u32, u32)> {
+    let wrap = |e: IngestError| e.in_file(path);
+    let reader = ImageReader::open(path)
+        .and_then(ImageReader::with_guessed_format)
+        .map_err(|e| wrap(e.into()))?;
+    if reader.format().is_none() {
+        return Err(wrap(IngestError::syntax(
+            "a PNG, TIFF or JPEG signature",
+            "another file kind",
+        )));
+    }
+    reader.into_dimensions().map_err(|e| {
+        wrap(IngestError::invalid(format!(
+            "cannot read the image header: {e}"
+        )))
+    })
+}
+
 /// Decodes PNG, TIFF or JPEG bytes into a [`GreyImage`].
 pub fn decode(bytes: &[u8], limits: &Limits) -> Result<GreyImage> {
     let img = decode_dynamic(bytes, limits)?;

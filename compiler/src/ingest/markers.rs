@@ -247,9 +247,29 @@ pub fn fit_rig_pose(rig: &[NamedPoint], traj: &Trajectories) -> Result<RigPose> 
         }
     }
     if fits.is_empty() {
-        return Err(IngestError::invalid(
-            "no frame shows 3 or more rig balls matched by name",
-        ));
+        let names = |v: Vec<&str>| v.join(", ");
+        let rig_names = names(rig.iter().map(|b| b.name.as_str()).collect());
+        if tracks.len() < 3 {
+            let labels: Vec<String> = traj
+                .markers
+                .iter()
+                .map(|m| match &m.subject {
+                    Some(s) => format!("{s}:{}", m.name),
+                    None => m.name.clone(),
+                })
+                .collect();
+            let seen = names(labels.iter().map(String::as_str).collect());
+            return Err(IngestError::invalid(format!(
+                "{} of the rig balls ({rig_names}) are in the rig-pose file, whose markers are \
+                 named {seen}; expected at least 3: name the balls in the Vicon file as in \
+                 [rig].markers (matched on the part after `Subject:`)",
+                tracks.len()
+            )));
+        }
+        return Err(IngestError::invalid(format!(
+            "no frame shows 3 or more of the rig balls ({rig_names}) at once; expected at least \
+             3 in some frame: check the balls were tracked during the capture"
+        )));
     }
     let fit_rms_m = fits.iter().map(|f| f.1).sum::<f64>() / fits.len() as f64;
     let poses: Vec<Pose> = fits.into_iter().map(|f| f.0).collect();

@@ -102,14 +102,17 @@ pub fn read_tiepoints(bytes: &[u8], limits: &Limits) -> Result<Vec<NamedPoint>> 
         out.push(NamedPoint { name, xyz });
     }
     if out.is_empty() {
-        return Err(IngestError::syntax(
-            "at least one tie-point row `Name,X,Y,Z` (line 1)",
+        return Err(IngestError::invalid(format!(
+            "{}: expected at least one tie-point row `Name,X,Y,Z` (a reflector centre in the \
+             scanner's own coordinates, metres, named as its ground marker); fill it from the \
+             scan position's tie-point list (RiSCAN PRO: TPL export), or register the scan \
+             with `sop = \"<file>.DAT\"` instead",
             if bytes.is_empty() {
-                "an empty file"
+                "the file is empty"
             } else {
-                "no data rows"
+                "the file has no data rows"
             },
-        )
+        ))
         .at_line(1));
     }
     Ok(out)

@@ -15,9 +15,10 @@
 //!   columns `X'`, `X''` and any `Count`); segments take `RX RY RZ TX TY TZ`; a model output
 //!   keeps every labelled column, however many (angles 3, a step width 1, ...);
 //! * the units row is required (a section without it is an error naming the line). Lengths in
-//!   `mm`, `cm` or `m` become metres for trajectories and segment translations; segment
-//!   rotations in `deg` (or `rad`, converted) stay degrees; model outputs keep values and unit
-//!   strings as written;
+//!   `mm`, `cm` or `m` become metres for trajectories (a marker coordinate beyond
+//!   [`MAX_COORDINATE_M`] under `m` is an error: millimetres under the wrong unit) and segment
+//!   translations; segment rotations in `deg` (or `rad`, converted) stay degrees; model
+//!   outputs keep values and unit strings as written;
 //! * an empty cell is a gap → `None`; frame numbers may start above 1 and must increase
 //!   (missing frame numbers become gaps, bounded by [`Limits::max_points`]).
 
@@ -279,7 +280,16 @@ fn unit_scale(s: &Section<'_>, c: usize, what: &str, angle: bool) -> Result<f64>
         "a length unit (mm, cm, m)"
     };
     scale.ok_or_else(|| {
-        IngestError::syntax(format!("{expected} for {what}"), unit).at_line(s.units.no)
+        let fix = if angle {
+            "write `deg` or `rad` in the units row"
+        } else {
+            "write `mm`, `cm` or `m` in the units row (converting the values if they are in \
+             another unit); Nexus exports write `mm`"
+        };
+        IngestError::invalid(format!(
+            "expected {expected} for {what}, found {unit:?} in the units row; {fix}"
+        ))
+        .at_line(s.units.no)
     })
 }
 
@@ -334,7 +344,13 @@ fn sample(
         .ok_or_else(|| IngestError::syntax(what(), cell).at_line(line))
 }
 
+/// No motion-capture volume reaches this far from its origin (the largest Vicon rooms span tens
+/// of metres): a marker coordinate beyond it in a file whose units row says `m` is a millimetre
+/// value under the wrong unit.
+pub const MAX_COORDINATE_M: f64 = 100.0;
+
 fn trajectories(s: Section<'_>, delim: char, limits: &Limits) -> Result<Trajectories> {
+    let units_line = s.units.no;
     let mut layout = Vec::new();
     for (label, cols) in groups(&s, "Marker")? {
         let xyz = role_columns(&s, &format!("marker `{label}`"), &cols, ["X", "Y", "Z"])?;
@@ -367,6 +383,17 @@ fn trajectories(s: Section<'_>, delim: char, limits: &Limits) -> Result<Trajecto
             for ((out, c), k) in p.iter_mut().zip(*xyz).zip(*scale) {
                 let what = || format!("a coordinate of marker `{label}`");
                 match sample(row.cell(c), delim, k, what, row.no)? {
+                    Some(v) if k == 1.0 && v.abs() > MAX_COORDINATE_M => {
+                        return Err(IngestError::invalid(format!(
+                            "marker `{label}` has a coordinate of {} m, farther than any \
+                             motion-capture volume reaches ({MAX_COORDINATE_M} m): the units \
+                             row (line {units_line}) says `m` but the values look like \
+                             millimetres; change the units row to `mm` (or convert the values \
+                             to metres)",
+                            row.cell(c)
+                        ))
+                        .at_line(row.no));
+                    }
                     Some(v) => *out = v,
                     None => seen = false,
                 }
@@ -556,5 +583,20 @@ mod tests {
             .unwrap_err()
             .to_string()
             .starts_with("line 5: expected a length unit"));
+    }
+
+    #[test]
+    fn millimetre_values_under_metres_name_the_line_and_the_fix() {
+        let l = Limits::default();
+        let f = "Trajectories\n100\n,,s:m,,\nFrame,Sub Frame,X,Y,Z\n,,m,m,m\n1,0,1.2,2.5,0.1\n2,0,1549.4,350.2,79.6\n";
+        let msg = parse(f.as_bytes(), &l).unwrap_err().to_string();
+        assert!(msg.starts_with("line 7: marker `s:m`"), "{msg}");
+        assert!(
+            msg.contains("units row (line 5) says `m`") && msg.contains("to `mm`"),
+            "{msg}"
+        );
+        // Metre values under `m` (a large lab, far from the origin) are fine.
+        let f = "Trajectories\n100\n,,s:m,,\nFrame,Sub Frame,X,Y,Z\n,,m,m,m\n1,0,42.5,-61.0,0.1\n";
+        assert!(parse(f.as_bytes(), &l).is_ok());
     }
 }

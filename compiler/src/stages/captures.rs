@@ -88,21 +88,84 @@ pub fn read_cameras(c: &Campaign) -> Result<Vec<NamedModel>, StageError> {
         .collect()
 }
 
+/// The message for a capture image whose size is not its camera's: both files, both sizes,
+/// what to do. `image` is relative to the campaign folder.
+fn size_mismatch(
+    c: &Campaign,
+    capture: &str,
+    camera: &NamedModel,
+    image: &Path,
+    size: (u32, u32),
+) -> String {
+    let (w, h) = (camera.model.width, camera.model.height);
+    let cam = c.cameras.iter().find(|k| k.name == camera.name);
+    let source = match cam {
+        Some(k) if k.image_size.is_some() => format!(
+            "`image_size = [{w}, {h}]` of [[camera]] {:?} in campaign.toml (calibration {})",
+            k.name,
+            k.calibration.display()
+        ),
+        Some(k) => format!("its calibration {}", k.calibration.display()),
+        None => "its calibration".to_string(),
+    };
+    format!(
+        "capture {capture:?}: image {} is {}x{} pixels, but camera {:?} is calibrated for \
+         {w}x{h} images ({source}); point [[camera]] {:?} `calibration` at a calibration made at \
+         {}x{} (intrinsics do not carry over between image sizes), or use the {w}x{h} images \
+         that calibration was made for",
+        image.display(),
+        size.0,
+        size.1,
+        camera.name,
+        camera.name,
+        size.0,
+        size.1
+    )
+}
+
+/// Checks that every capture image has its camera's calibrated size, from the image headers
+/// alone: cheap, so a compile runs it before any heavy work. (`compile --check` parses each
+/// file on its own and does not compare them.)
+pub fn check_image_sizes(c: &Campaign) -> Result<(), StageError> {
+    let Some(rig) = &c.rig else { return Ok(()) };
+    if c.captures.is_empty() {
+        return Ok(());
+    }
+    let cameras = read_cameras(c)?;
+    let (Some(left), Some(right)) = (cameras.get(rig.left), cameras.get(rig.right)) else {
+        return Err(StageError::new(NAME, "rig cameras out of range"));
+    };
+    for cap in &c.captures {
+        let sides = cap
+            .left
+            .iter()
+            .map(|p| (left, p))
+            .chain(cap.right.iter().map(|p| (right, p)));
+        for (camera, rel) in sides {
+            let size = images::dimensions_path(&c.root.join(rel)).map_err(err)?;
+            if size != (camera.model.width, camera.model.height) {
+                return Err(StageError::new(
+                    NAME,
+                    size_mismatch(c, &cap.name, camera, rel, size),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Raw bytes as PNG (kept as is when already PNG) and the undistorted frame as PNG.
 fn frame_pair(
     path: &Path,
     map: &undistort::UndistortMap,
     model: &CameraModel,
     limits: &Limits,
+    mismatch: &dyn Fn((u32, u32)) -> String,
 ) -> Result<(Vec<u8>, Vec<u8>), IngestError> {
     let bytes = std::fs::read(path).map_err(|e| IngestError::Io(e).in_file(path))?;
     let img = images::decode(&bytes, limits).map_err(|e| e.in_file(path))?;
     if img.width != model.width || img.height != model.height {
-        return Err(IngestError::invalid(format!(
-            "image is {}x{}, the camera calibration says {}x{}",
-            img.width, img.height, model.width, model.height
-        ))
-        .in_file(path));
+        return Err(IngestError::invalid(mismatch((img.width, img.height))));
     }
     let encode = |g: &images::GreyImage| {
         if g.bit_depth > 8 {
@@ -176,8 +239,17 @@ impl Stage for BuildCaptures {
         for cap in &c.captures {
             let traj =
                 vicon_csv::read_path(&c.root.join(&cap.rig_pose), &self.limits).map_err(err)?;
-            let pose = markers::fit_rig_pose(&balls, &traj)
-                .map_err(|e| StageError::new(NAME, format!("capture {:?}: {e}", cap.name)))?;
+            let pose = markers::fit_rig_pose(&balls, &traj).map_err(|e| {
+                StageError::new(
+                    NAME,
+                    format!(
+                        "capture {:?}: {e} (rig pose {}, [rig].markers {})",
+                        cap.name,
+                        cap.rig_pose.display(),
+                        rig.markers.display()
+                    ),
+                )
+            })?;
             if pose.translation_rms_m > 0.005 || pose.rotation_rms_deg > 0.5 {
                 cx.reporter.warn(
                     NAME,
@@ -198,21 +270,29 @@ impl Stage for BuildCaptures {
                 "translation_rms_m": pose.translation_rms_m, "rotation_rms_deg": pose.rotation_rms_deg,
                 "fit_rms_m": pose.fit_rms_m,
             }));
-            let jobs: Vec<(usize, PathBuf)> = cap
+            let jobs: Vec<(usize, &PathBuf)> = cap
                 .left
                 .iter()
-                .map(|p| (0, c.root.join(p)))
-                .chain(cap.right.iter().map(|p| (1, c.root.join(p))))
+                .map(|p| (0, p))
+                .chain(cap.right.iter().map(|p| (1, p)))
                 .collect();
             let done: Vec<(usize, Vec<u8>, Vec<u8>)> = jobs
                 .par_iter()
-                .map(|(side, path)| {
-                    let (model, map) = if *side == 0 {
-                        (&left.model, &maps[0])
+                .map(|(side, rel)| {
+                    let (named, map) = if *side == 0 {
+                        (&left, &maps[0])
                     } else {
-                        (&right.model, &maps[1])
+                        (&right, &maps[1])
                     };
-                    frame_pair(path, map, model, &self.limits).map(|(raw, rect)| (*side, raw, rect))
+                    let mismatch = |size| size_mismatch(c, &cap.name, named, rel, size);
+                    frame_pair(
+                        &c.root.join(rel),
+                        map,
+                        &named.model,
+                        &self.limits,
+                        &mismatch,
+                    )
+                    .map(|(raw, rect)| (*side, raw, rect))
                 })
                 .collect::<Result<_, _>>()
                 .map_err(err)?;

@@ -142,9 +142,20 @@ impl RegisterTiepoints {
             Some(sop) => (sop, vec![true; pairs.len()], "sop"),
             None => {
                 if pairs.len() < 3 {
+                    let names = |v: &[NamedPoint]| {
+                        let mut n: Vec<&str> = v.iter().map(|p| p.name.as_str()).collect();
+                        n.sort_unstable();
+                        n.join(", ")
+                    };
                     return Err(err(format!(
-                        "{} tie point(s) match a ground marker, expected at least 3 (or a SOP matrix)",
-                        pairs.len()
+                        "{} tie point(s) match a ground marker, expected at least 3 (or a SOP \
+                         matrix); the tie points are named {} and the ground markers {}: name \
+                         each tie point exactly as the ground marker at the same reflector \
+                         (the Vicon name without its `Subject:` part), or register the scan \
+                         with `sop = \"<file>.DAT\"`",
+                        pairs.len(),
+                        names(&scan.tiepoints),
+                        names(markers)
                     )));
                 }
                 let (m, used) = self.fit_with_rejection(&pairs).ok_or_else(|| {
