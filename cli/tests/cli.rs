@@ -336,3 +336,68 @@ fn a_closed_stdout_pipe_ends_quietly() {
         assert!(!stderr.contains("internal error"), "{args:?}: {stderr}");
     }
 }
+
+/// A validation computes without the database's lock and takes it to write its certificate,
+/// waiting for another writer instead of refusing: two validations (or a validation and a
+/// compile) of one database run side by side.
+#[test]
+fn validate_holds_the_lock_only_to_write_its_certificate() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("db");
+    let db = db.to_str().unwrap();
+    let demo = regolith_tests::workspace_root().join("corpus/demo");
+    let compiled = regolith(&["compile", demo.to_str().unwrap(), "--db", db, "-q"]);
+    assert!(compiled.status.success(), "{compiled:?}");
+    let entry = "laser/0.02";
+    let held = writer_after_release(db);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_regolith"))
+        .args([
+            "validate",
+            db,
+            "--entry",
+            entry,
+            "--detector",
+            "fast",
+            "--json",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The child validates while this process holds the lock, then says it waits.
+    let stderr = child.stderr.take().unwrap();
+    let mut lines = BufReader::new(stderr).lines();
+    let mut seen = Vec::new();
+    let waited = loop {
+        match lines.next() {
+            Some(Ok(line)) => {
+                let waiting = line.contains("waiting for another process writing to");
+                seen.push(line);
+                if waiting {
+                    break true;
+                }
+            }
+            _ => break false,
+        }
+    };
+    assert!(waited, "validate did not wait for the lock: {seen:#?}");
+    drop(held);
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        matches!(out.status.code(), Some(0 | 1)),
+        "exit {:?}; stderr before: {seen:#?}",
+        out.status.code()
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let cert = v["entries"][0]["certificate"].as_str().unwrap();
+    let database = regolith_reader::Database::open(db).unwrap();
+    let id = database.release("latest").unwrap().id;
+    let refs = database.refs().unwrap();
+    let r = refs
+        .iter()
+        .find(|(name, _)| name.starts_with(&format!("certificates/{}", id.to_hex())))
+        .unwrap();
+    assert_eq!(r.1.to_hex(), cert);
+}

@@ -329,6 +329,16 @@ fn first_day_mistakes_name_the_file_and_the_fix() {
         .word(format!("line {units}"))
         .unchanged(&db),
     );
+    // The same mistake compiled into a new database: the failed compile leaves no folder.
+    let fresh = t.join("fresh.db");
+    rows.push(
+        row(
+            "Vicon units row with an unsupported unit, into a new database",
+            &["compile", s(&c), "--db", s(&fresh)],
+            &["vicon/markers.csv", "found \"in\""],
+        )
+        .absent(&fresh),
+    );
 
     // 5. A calibration for another image size than the captures'.
     let c = demo(t, "calibration-size");

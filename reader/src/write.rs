@@ -66,7 +66,23 @@ impl Writer {
     /// A folder holding other files is refused ([`ReaderError::NotEmpty`]): a database among a
     /// campaign's or a project's files would be mixed up with them.
     pub fn create_or_open(path: impl AsRef<Path>) -> Result<Writer> {
-        let root = path.as_ref().to_path_buf();
+        Writer::open_with(path.as_ref(), None)
+    }
+
+    /// Opens an existing database for writing, waiting for another writer to finish instead
+    /// of refusing: for a short write at the end of long work (a certificate after a
+    /// validation, a fitted model after `gap`), so that the work itself holds no lock and
+    /// several such commands can run on one database. `on_wait` is called once if the lock is
+    /// held by another process, before waiting.
+    pub fn open_waiting(path: impl AsRef<Path>, on_wait: &dyn Fn()) -> Result<Writer> {
+        let root = path.as_ref();
+        Database::open(root)?;
+        Writer::open_with(root, Some(on_wait))
+    }
+
+    /// [`Writer::create_or_open`], or with `wait`, [`Writer::open_waiting`].
+    fn open_with(root: &Path, wait: Option<&dyn Fn()>) -> Result<Writer> {
+        let root = root.to_path_buf();
         if !root.join(MARKER).exists() {
             // Only what this function creates may be there already (an interrupted creation).
             const SKELETON: [&str; 5] = ["objects", "refs", "logs", "tmp", "lock"];
@@ -98,9 +114,14 @@ impl Writer {
             .map_err(ReaderError::io("opening", &lock_path))?;
         match lock.try_lock() {
             Ok(()) => {}
-            Err(std::fs::TryLockError::WouldBlock) => {
-                return Err(ReaderError::Locked { path: root.clone() });
-            }
+            Err(std::fs::TryLockError::WouldBlock) => match wait {
+                Some(on_wait) => {
+                    on_wait();
+                    lock.lock()
+                        .map_err(ReaderError::io("locking", &lock_path))?;
+                }
+                None => return Err(ReaderError::Locked { path: root.clone() }),
+            },
             Err(std::fs::TryLockError::Error(e)) => {
                 return Err(ReaderError::Io {
                     op: "locking",

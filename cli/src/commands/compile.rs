@@ -45,10 +45,24 @@ pub fn run(
     let Some(db) = db else {
         anyhow::bail!("`regolith compile` needs --db DB (or --check to only parse the campaign)");
     };
+    // A compile that fails leaves the database as it was (the compiler takes back its objects);
+    // a database this run created is removed whole.
+    let created = !db.exists();
     let writer = Writer::create_or_open(db)?;
     let progress = Progress::new();
     let opts = compile::options(&c, release);
-    let summary = compile::compile(&c, &writer, &opts, &|stage, f| progress.report(stage, f))?;
+    let summary = match compile::compile(&c, &writer, &opts, &|stage, f| progress.report(stage, f))
+    {
+        Ok(s) => s,
+        Err(e) => {
+            drop(writer);
+            if created {
+                // Best effort: the compile's own error is the one to report.
+                let _ = std::fs::remove_dir_all(db);
+            }
+            return Err(e.into());
+        }
+    };
     progress.finish();
     if json {
         print_json(&summary)?;

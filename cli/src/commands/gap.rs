@@ -40,7 +40,10 @@ pub fn run(
     let result = gap::run_observed(&view, entry, &opts, &|step, f| progress.report(step, f))?;
     let seconds = progress.finish();
     let applied = if apply_model && !result.named.is_empty() {
-        let writer = Writer::create_or_open(db)?;
+        // Locked for the write alone: the fit above ran without holding the database.
+        let writer = Writer::open_waiting(db, &|| {
+            eprintln!("waiting for another process writing to {}", db.display());
+        })?;
         let summary = json!({
             "release": view.label(),
             "named": result.named.iter().map(|n| &n.effect).collect::<Vec<_>>(),

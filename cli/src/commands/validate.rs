@@ -1,7 +1,8 @@
 //! `regolith validate DB`: certify terrain entries (heightfields and meshes, by default all of
 //! them) against the real captures (see `regolith_validator::validate`); certificates go into
-//! the database under `certificates/<release id>/<escaped entry>` (SPEC §2). With `--report DIR` the same run
-//! also draws an offline HTML report (`regolith_validator::report`).
+//! the database under `certificates/<release id>/<escaped entry>` (SPEC §2), each under the
+//! database's write lock for the write alone. With `--report DIR` the same run also draws an
+//! offline HTML report (`regolith_validator::report`).
 
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -56,7 +57,6 @@ pub fn run(
     for name in &names {
         view.entry(name)?;
     }
-    let writer = Writer::create_or_open(db)?;
     let mut html = match report {
         Some(dir) => Some(
             ValidationReport::new(dir, &view.label(), &view.id.to_hex())
@@ -88,7 +88,14 @@ pub fn run(
                 .map_err(anyhow::Error::from),
         }
         .with_context(|| format!("validating {name}"))?;
-        let f = writer.put_certificate(&view.id, name, &cert)?;
+        // The database is locked for the write alone, not for the validation: several
+        // validations (of other entries, or other shards of work) run side by side.
+        let f = progress.suspend(|| {
+            Writer::open_waiting(db, &|| {
+                eprintln!("waiting for another process writing to {}", db.display());
+            })?
+            .put_certificate(&view.id, name, &cert)
+        })?;
         all_pass &= cert.passed;
         if !json {
             progress.suspend(|| print_certificate(name, &cert, &f.object.short()));
