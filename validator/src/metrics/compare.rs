@@ -61,6 +61,13 @@ pub struct Detected {
     ellipses: Vec<Ellipse>,
 }
 
+impl Detected {
+    /// The keypoints found.
+    pub fn keypoints(&self) -> &[Keypoint] {
+        &self.kps
+    }
+}
+
 /// Runs detector `d` on `img`.
 pub fn detect(img: &GreyF32, d: Detector, params: &DetectorParams) -> Detected {
     match d {
