@@ -104,6 +104,23 @@ fn line_of(path: &Path, needle: &str) -> usize {
         + 1
 }
 
+/// Writes `unit` over the `mm` of the units row of campaign `c`'s ground-marker Vicon file.
+fn rewrite_vicon_units(c: &Path, unit: &str) {
+    let markers = c.join("vicon/markers.csv");
+    let text = std::fs::read_to_string(&markers).unwrap();
+    let broken: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if l.starts_with(",,mm") {
+                l.replace("mm", unit)
+            } else {
+                l.to_string()
+            }
+        })
+        .collect();
+    std::fs::write(&markers, broken.join("\n") + "\n").unwrap();
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
@@ -272,20 +289,8 @@ fn first_day_mistakes_name_the_file_and_the_fix() {
     // 4. Wrong units in the Vicon file: `m` over millimetre values, and a unit regolith does
     //    not read.
     let c = demo(t, "vicon-metres");
-    let markers = c.join("vicon/markers.csv");
-    let units = line_of(&markers, ",,mm,mm,mm");
-    let text = std::fs::read_to_string(&markers).unwrap();
-    let broken: Vec<String> = text
-        .lines()
-        .map(|l| {
-            if l.starts_with(",,mm") {
-                l.replace("mm", "m")
-            } else {
-                l.to_string()
-            }
-        })
-        .collect();
-    std::fs::write(&markers, broken.join("\n") + "\n").unwrap();
+    let units = line_of(&c.join("vicon/markers.csv"), ",,mm,mm,mm");
+    rewrite_vicon_units(&c, "m");
     rows.push(
         row(
             "Vicon units row says m over millimetre values",
@@ -302,19 +307,7 @@ fn first_day_mistakes_name_the_file_and_the_fix() {
         .unchanged(&db),
     );
     let c = demo(t, "vicon-inches");
-    let markers = c.join("vicon/markers.csv");
-    let text = std::fs::read_to_string(&markers).unwrap();
-    let broken: Vec<String> = text
-        .lines()
-        .map(|l| {
-            if l.starts_with(",,mm") {
-                l.replace("mm", "in")
-            } else {
-                l.to_string()
-            }
-        })
-        .collect();
-    std::fs::write(&markers, broken.join("\n") + "\n").unwrap();
+    rewrite_vicon_units(&c, "in");
     rows.push(
         row(
             "Vicon units row with an unsupported unit",
