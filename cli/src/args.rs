@@ -9,7 +9,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 #[derive(Debug, Parser)]
 #[command(name = "regolith", version, propagate_version = true)]
 #[command(
-    after_help = "Exit codes: 0 ok, 1 a check failed (verify), 2 usage or input error.\n\
+    after_help = "Exit codes: 0 ok, 1 a check failed (validate, release, verify), 2 usage or input error.\n\
 Format spec: format-spec/SPEC.md (regolith.db/1)."
 )]
 pub struct Cli {
@@ -28,36 +28,11 @@ pub struct Cli {
 /// Subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Rehash every object reachable from every release; exit 1 on any corrupt or missing one.
-    Verify {
-        /// The database folder.
-        db: PathBuf,
-    },
-    /// Summarise a database, a release or one entry.
-    Inspect {
-        /// The database folder.
-        db: PathBuf,
-        /// A release: `name@version`, `latest`, or an id (prefix of at least 6 hex digits).
-        release: Option<String>,
-        /// An entry name, e.g. `laser/0.015`.
-        entry: Option<String>,
-    },
-    /// Write an entry as plain files with their metadata (never partially written).
-    Export {
-        /// The database folder.
-        db: PathBuf,
-        /// The release.
-        release: String,
-        /// The entry.
-        entry: String,
-        /// Output folder; must not exist yet or be empty.
-        #[arg(long)]
-        to: PathBuf,
-        /// Also write an engine-specific heightfield variant.
-        #[arg(long, value_enum)]
-        profile: Option<Profile>,
-    },
-    /// Compile a survey campaign into a new release (`--check`: parse and inventory only).
+    /// Compile a survey campaign into a new release.
+    ///
+    /// Reads the campaign folder (campaign.toml and the raw files it names), registers and
+    /// merges the scans, builds DEMs, textures and meshes, aligns the SfM model and writes an
+    /// immutable release. `--check` parses every referenced file and prints an inventory.
     Compile {
         /// The campaign folder (or its campaign.toml).
         campaign: PathBuf,
@@ -71,17 +46,11 @@ pub enum Command {
         #[arg(long)]
         check: bool,
     },
-    /// Run the main job on the checked-in demo campaign (`corpus/demo`) and say where the outputs are.
-    Demo {
-        /// The demo campaign folder.
-        #[arg(long, default_value = "corpus/demo")]
-        campaign: PathBuf,
-        /// Output folder (the database goes to `<out>/db`).
-        #[arg(long, default_value = "out/demo")]
-        out: PathBuf,
-    },
-    /// Re-render terrain entries at every capture, measure feature repeatability against the
-    /// real images and write a certificate per entry; exit 1 unless every entry passes.
+    /// Certify terrain entries against the real captures.
+    ///
+    /// Re-renders every heightfield and mesh entry at every capture pose, measures feature
+    /// repeatability against the real images and writes a certificate per entry; exit 1 unless
+    /// every entry passes.
     Validate {
         /// The database folder.
         db: PathBuf,
@@ -106,25 +75,11 @@ pub enum Command {
         #[arg(long, value_name = "DIR")]
         report: Option<PathBuf>,
     },
-    /// Write a deliberately degraded copy of a terrain entry (its texture blurred) into a child
-    /// release: a negative control that `validate` must fail, for checking and calibrating the
-    /// gate on your own campaign.
-    Control {
-        /// The database folder.
-        db: PathBuf,
-        /// The release (default: latest).
-        #[arg(long, default_value = "latest")]
-        release: String,
-        /// The heightfield entry to copy, e.g. `laser/0.01` (it must have a texture).
-        #[arg(long)]
-        entry: String,
-        /// Gaussian blur of the texture, σ in metres on the ground.
-        #[arg(long, value_name = "SIGMA_M")]
-        texture_blur_m: f64,
-    },
-    /// Find where simulation and measurement disagree for one entry, name the missing effects
-    /// (vignetting, blur, noise, gamma, exposure, shadows, distortion, pose-bias,
-    /// texture-lowpass), fit them and show the gap before/after; `--apply` writes the fitted
+    /// Name the sensor effects that separate renders from the real images.
+    ///
+    /// Finds where simulation and measurement disagree for one entry, names the missing
+    /// effects (vignetting, blur, noise, gamma, exposure, shadows, distortion, pose-bias,
+    /// texture-lowpass), fits them and shows the gap before/after; `--apply` writes the fitted
     /// sensor model into a child release.
     Gap {
         /// The database folder.
@@ -152,21 +107,28 @@ pub enum Command {
         #[arg(long)]
         report: Option<PathBuf>,
     },
-    /// The validator's feature detectors and repeatability metric on your own images.
-    Features {
-        /// What to do.
-        #[command(subcommand)]
-        action: FeaturesAction,
+    /// Make a negative control: an entry with its texture blurred.
+    ///
+    /// Writes the degraded copy into a child release; `validate` must fail it. For checking and
+    /// calibrating the gate on your own campaign.
+    Control {
+        /// The database folder.
+        db: PathBuf,
+        /// The release (default: latest).
+        #[arg(long, default_value = "latest")]
+        release: String,
+        /// The heightfield entry to copy, e.g. `laser/0.01` (it must have a texture).
+        #[arg(long)]
+        entry: String,
+        /// Gaussian blur of the texture, σ in metres on the ground.
+        #[arg(long, value_name = "SIGMA_M")]
+        texture_blur_m: f64,
     },
-    /// Synthetic campaigns with ground truth and hidden effects.
-    Corpus {
-        /// What to do.
-        #[command(subcommand)]
-        action: CorpusAction,
-    },
-    /// Publish a release: refuses unless every terrain entry has a passing certificate for this
-    /// release (run `regolith validate` first), or `--allow-uncertified` is given — which makes a
-    /// child release recording `allow_uncertified: true` in its manifest and publishes that.
+    /// Publish a release whose terrain entries passed validation.
+    ///
+    /// Refuses unless every terrain entry has a passing certificate for this release (run
+    /// `regolith validate` first), or `--allow-uncertified` is given, which makes a child
+    /// release recording `allow_uncertified: true` in its manifest and publishes that.
     Release {
         /// The database folder.
         db: PathBuf,
@@ -179,21 +141,75 @@ pub enum Command {
         #[arg(long)]
         allow_uncertified: bool,
     },
-    /// Remove objects no release references (safe: holds the database's write lock).
+    /// Run the validator's detectors and repeatability metric on your own images.
+    Features {
+        /// What to do.
+        #[command(subcommand)]
+        action: FeaturesAction,
+    },
+    /// Rehash every object of every release; exit 1 naming each corrupt or missing one.
+    Verify {
+        /// The database folder.
+        db: PathBuf,
+    },
+    /// Show a database's releases, a release's entries, or one entry.
+    Inspect {
+        /// The database folder.
+        db: PathBuf,
+        /// A release: `name@version`, `latest`, or an id (prefix of at least 6 hex digits).
+        release: Option<String>,
+        /// An entry name, e.g. `laser/0.015`.
+        entry: Option<String>,
+    },
+    /// Write an entry as plain files with their metadata (never partially written).
+    Export {
+        /// The database folder.
+        db: PathBuf,
+        /// The release.
+        release: String,
+        /// The entry.
+        entry: String,
+        /// Output folder; must not exist yet or be empty.
+        #[arg(long)]
+        to: PathBuf,
+        /// Also write an engine-specific heightfield variant.
+        #[arg(long, value_enum)]
+        profile: Option<Profile>,
+    },
+    /// Remove objects no release references (holds the database's write lock).
     Gc {
         /// The database folder.
         db: PathBuf,
     },
-    /// Print a shell completion script to stdout, e.g.
-    /// `regolith completions bash > ~/.local/share/bash-completion/completions/regolith`.
+    /// Generate synthetic campaigns with ground truth and hidden effects.
+    Corpus {
+        /// What to do.
+        #[command(subcommand)]
+        action: CorpusAction,
+    },
+    /// Compile, validate and examine the checked-in demo campaign.
+    ///
+    /// Runs the main job on `corpus/demo` and says where the outputs are.
+    Demo {
+        /// The demo campaign folder.
+        #[arg(long, default_value = "corpus/demo")]
+        campaign: PathBuf,
+        /// Output folder (the database goes to `<out>/db`).
+        #[arg(long, default_value = "out/demo")]
+        out: PathBuf,
+    },
+    /// Print a shell completion script.
+    ///
+    /// e.g. `regolith completions bash > ~/.local/share/bash-completion/completions/regolith`.
     Completions {
         /// The shell.
         #[arg(value_enum)]
         shell: clap_complete::Shell,
     },
-    /// Print the man page regolith(1) (roff) to stdout, e.g.
-    /// `regolith manpage > ~/.local/share/man/man1/regolith.1`; with `--dir`, write it and one
-    /// page per command (regolith-compile(1), ...) into a folder.
+    /// Print the man page regolith(1).
+    ///
+    /// e.g. `regolith manpage > ~/.local/share/man/man1/regolith.1`; with `--dir`, write it and
+    /// one page per command (regolith-compile(1), ...) into a folder.
     Manpage {
         /// Write `regolith.1` and `regolith-<command>.1` for every command into this folder.
         #[arg(long, value_name = "DIR")]
