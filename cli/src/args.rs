@@ -254,10 +254,37 @@ pub enum CorpusAction {
         /// Output folder (created; must be empty or absent).
         #[arg(long)]
         out: PathBuf,
+        /// Who makes the NavCam frames: `mitsuba` (a physically based renderer in a lab hall,
+        /// then the corpus's own camera; independent of the validator) or `model` (the
+        /// validator's own renderer and sensor model: fast, for unit tests of the fitting code
+        /// only — the inverse crime; recorded in truth/renderer.json).
+        #[arg(long, value_enum, default_value = "mitsuba")]
+        renderer: RendererArg,
+        /// Render cache of `--renderer mitsuba`: renders found here are reused, missing ones
+        /// are rendered (needs Mitsuba: tools/render/install.sh) and stored. Default
+        /// `$REGOLITH_RENDER_CACHE`, else `~/.cache/regolith/renders`.
+        #[arg(long, value_name = "DIR")]
+        renders: Option<PathBuf>,
+        /// Never run the renderer: every render must be in the cache (say which are missing).
+        #[arg(long)]
+        no_render: bool,
+        /// Samples per canvas pixel of `--renderer mitsuba`.
+        #[arg(long, value_name = "N", default_value_t = 64,
+              value_parser = clap::value_parser!(u32).range(1..=65536))]
+        spp: u32,
         /// Also write malformed variants of every input kind into this folder.
         #[arg(long, value_name = "DIR")]
         bad_inputs: Option<PathBuf>,
     },
+}
+
+/// Who makes a corpus campaign's NavCam frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RendererArg {
+    /// Mitsuba 3 path tracing in a lab hall + the corpus's own camera model.
+    Mitsuba,
+    /// The validator's own renderer and sensor model (unit tests of the fitting code only).
+    Model,
 }
 
 /// Corpus presets.

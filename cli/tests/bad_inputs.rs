@@ -37,6 +37,7 @@ fn every_malformed_input_gives_exit_2_naming_file_and_place() {
             hidden: vec![],
         },
         &good,
+        &regolith_model_captures::ModelCaptures,
         &|_, _| {},
     )
     .unwrap();

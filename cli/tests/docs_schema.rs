@@ -465,7 +465,16 @@ fn corpus_generate_matches_its_page() {
     let out = dir.path().join("mini").to_string_lossy().into_owned();
     let v = json_of(
         &[
-            "corpus", "generate", "--preset", "mini", "--seed", "1", "--out", &out,
+            "corpus",
+            "generate",
+            "--renderer",
+            "model",
+            "--preset",
+            "mini",
+            "--seed",
+            "1",
+            "--out",
+            &out,
         ],
         0,
     );
@@ -477,6 +486,8 @@ fn corpus_generate_matches_its_page() {
         &[
             "corpus",
             "generate",
+            "--renderer",
+            "model",
             "--seed",
             "1",
             "--out",

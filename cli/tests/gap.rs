@@ -35,6 +35,8 @@ fn generate_seed(dir: &Path, seed: &str, extra: &[&str]) -> std::path::PathBuf {
     let mut args = vec![
         "corpus",
         "generate",
+        "--renderer",
+        "model",
         "--preset",
         "mini",
         "--seed",

@@ -50,7 +50,16 @@ fn degraded_entries_fail_their_certificates_and_block_publishing() {
         dir.path().join("db").to_string_lossy().into_owned(),
     );
     let out = regolith(&[
-        "corpus", "generate", "--preset", "mini", "--seed", "7", "--out", camp_s,
+        "corpus",
+        "generate",
+        "--renderer",
+        "model",
+        "--preset",
+        "mini",
+        "--seed",
+        "7",
+        "--out",
+        camp_s,
     ]);
     assert_eq!(
         out.status.code(),
@@ -206,7 +215,16 @@ fn certificate_with(dir: &std::path::Path, name: &str, hidden: &[&str]) -> Value
         .join(format!("{name}-db"))
         .to_string_lossy()
         .into_owned();
-    let mut args = vec!["corpus", "generate", "--preset", "mini", "--seed", "7"];
+    let mut args = vec![
+        "corpus",
+        "generate",
+        "--renderer",
+        "model",
+        "--preset",
+        "mini",
+        "--seed",
+        "7",
+    ];
     args.extend_from_slice(hidden);
     args.extend_from_slice(&["--out", camp.to_str().unwrap()]);
     let out = regolith(&args);

@@ -52,7 +52,16 @@ fn mesh_entry_renders_like_its_heightfield_and_is_certified() {
     let db = dir.path().join("db").to_string_lossy().into_owned();
     let camp_s = camp.to_str().unwrap();
     let out = ok(&[
-        "corpus", "generate", "--preset", "mini", "--seed", "7", "--out", camp_s,
+        "corpus",
+        "generate",
+        "--renderer",
+        "model",
+        "--preset",
+        "mini",
+        "--seed",
+        "7",
+        "--out",
+        camp_s,
     ]);
     assert_eq!(out.status.code(), Some(0));
     let out = ok(&["compile", camp_s, "--db", &db, "--release", "mesh@1.0.0"]);

@@ -268,7 +268,16 @@ fn every_command_accepts_every_path_form() {
         check(
             &format!("corpus generate --out {out}"),
             &dir,
-            &["corpus", "generate", "--seed", "1", "--out", out],
+            &[
+                "corpus",
+                "generate",
+                "--renderer",
+                "model",
+                "--seed",
+                "1",
+                "--out",
+                out,
+            ],
             &Expect::Success,
         );
         assert!(dir.join(out).join("campaign.toml").is_file(), "{out}");

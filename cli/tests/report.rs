@@ -67,7 +67,16 @@ fn validate_writes_a_self_contained_report() {
     let (camp_s, db_s) = (camp.to_str().unwrap(), db.to_str().unwrap());
     ok(
         &regolith(&[
-            "corpus", "generate", "--preset", "mini", "--seed", "21", "--out", camp_s,
+            "corpus",
+            "generate",
+            "--renderer",
+            "model",
+            "--preset",
+            "mini",
+            "--seed",
+            "21",
+            "--out",
+            camp_s,
         ]),
         &[0],
     );

@@ -211,6 +211,7 @@ fn sfm_aligns_from_ground_control_points_with_and_without_scans() {
             hidden: vec![],
         },
         &camp,
+        &regolith_model_captures::ModelCaptures,
         &|_, _| {},
     )
     .unwrap();

@@ -9,7 +9,7 @@
 //! Nor is `sfm/mesh_gcp.csv`: the reconstruction is aligned with `align = "laser"`; a test or a
 //! user switches to ground control by setting `align = "sfm/mesh_gcp.csv"`.
 
-use regolith_validator::render::Light;
+use regolith_format::lighting::Light;
 
 use crate::presets::PresetConfig;
 

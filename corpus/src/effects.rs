@@ -1,7 +1,9 @@
 //! Hidden effects: which ones, with which parameters, and the baseline every real image has.
 //!
-//! The catalogue, parameter names and plausible ranges are `regolith_validator::sensor`'s
-//! (shared with the gap workflow, so the generator cannot hide something the fit cannot name).
+//! The catalogue, parameter names and plausible ranges are `regolith_format::effects`' (the
+//! words shared with the gap workflow, so the generator cannot hide something the fit cannot
+//! name); how an effect acts on the data is this crate's own ([`Hidden`] for geometry and
+//! texture, [`crate::camera`] for the images), never the validator's.
 //! Each requested effect gets its parameters drawn from its range with the stage RNG
 //! `hidden.<name>`, then the user's `--effect-param E.name=value` overrides are applied.
 //! `shadows` is special: the lab light is the one casting the shadows, so the generator moves
@@ -22,8 +24,11 @@
 use std::collections::BTreeMap;
 
 use rand::Rng;
-use regolith_validator::render::Light;
-use regolith_validator::sensor::{Effect, SensorModel};
+use regolith_format::camera_model::CameraModel;
+use regolith_format::effects::{Effect, ParamRange};
+use regolith_format::frames::{quat_from_axis_angle, Pose};
+use regolith_format::grid::AlbedoGrid;
+use regolith_format::lighting::Light;
 
 use crate::seeding::stage_rng;
 use crate::CorpusError;
@@ -92,9 +97,7 @@ pub fn apply_param(specs: &mut [HiddenSpec], arg: &str) -> Result<(), CorpusErro
     Ok(())
 }
 
-fn check_name(
-    name: &str,
-) -> Result<&'static [regolith_validator::sensor::ParamRange], CorpusError> {
+fn check_name(name: &str) -> Result<&'static [ParamRange], CorpusError> {
     Effect::default_range(name).ok_or_else(|| CorpusError::Option {
         option: "--hidden-effect",
         expected: format!("one of {}", Effect::NAMES.join(", ")),
@@ -102,16 +105,100 @@ fn check_name(
     })
 }
 
+/// The hidden effects of a campaign, and what they do to its geometry and texture.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Hidden {
+    /// The effects, in the order requested.
+    pub effects: Vec<Effect>,
+}
+
+impl Hidden {
+    /// The true camera: `base` with every `distortion` added to its `k1`, `k2`.
+    pub fn camera(&self, base: &CameraModel) -> CameraModel {
+        let mut cam = base.clone();
+        for e in &self.effects {
+            if let Effect::Distortion { dk1, dk2 } = e {
+                cam.distortion.k1 += dk1;
+                cam.distortion.k2 += dk2;
+            }
+        }
+        cam
+    }
+
+    /// The true pose of the rig's reference (left) camera whose Vicon pose is
+    /// `ground_from_rig`: every `pose-bias` `B` (true rig in calibrated-rig coordinates,
+    /// rotations applied x, then y, then z) composed on the right, as the registry defines it.
+    pub fn rig_pose(&self, ground_from_rig: Pose) -> Pose {
+        let mut bias = Pose::IDENTITY;
+        for e in &self.effects {
+            if let Effect::PoseBias {
+                translation_m,
+                rotation_deg,
+            } = e
+            {
+                let [rx, ry, rz] = rotation_deg.map(f64::to_radians);
+                let about = |axis: [f64; 3], a: f64| Pose {
+                    translation_m: [0.0; 3],
+                    rotation_xyzw: quat_from_axis_angle(axis, a),
+                };
+                let rot = about([0.0, 0.0, 1.0], rz)
+                    .compose(&about([0.0, 1.0, 0.0], ry))
+                    .compose(&about([1.0, 0.0, 0.0], rx));
+                bias = bias.compose(&Pose {
+                    translation_m: *translation_m,
+                    rotation_xyzw: rot.rotation_xyzw,
+                });
+            }
+        }
+        ground_from_rig
+            .compose(&Pose::IDENTITY.inverse())
+            .compose(&bias)
+            .compose(&Pose::IDENTITY)
+    }
+
+    /// The albedo an entry's texture is made from: `grid` low-passed by every
+    /// `texture-lowpass` (its `sigma_m` in cells of the grid).
+    pub fn albedo(&self, grid: &AlbedoGrid) -> AlbedoGrid {
+        let mut out = grid.clone();
+        for e in &self.effects {
+            if let Effect::TextureLowpass { sigma_m } = e {
+                if grid.cell_m > 0.0 {
+                    out.value = crate::terrain::gaussian_blur(
+                        &out.value,
+                        out.width,
+                        out.height,
+                        sigma_m / grid.cell_m,
+                    );
+                }
+            }
+        }
+        out
+    }
+
+    /// The light casting hidden shadows, if any (the last `shadows` wins).
+    pub fn shadow_light(&self) -> Option<(f64, f64)> {
+        self.effects.iter().rev().find_map(|e| match *e {
+            Effect::Shadows {
+                azimuth_deg,
+                elevation_deg,
+            } => Some((azimuth_deg, elevation_deg)),
+            _ => None,
+        })
+    }
+}
+
 /// Draws the hidden model: defaults from the seed, then overrides.
-pub fn resolve(specs: &[HiddenSpec], seed: u64) -> Result<SensorModel, CorpusError> {
+pub fn resolve(specs: &[HiddenSpec], seed: u64) -> Result<Hidden, CorpusError> {
     let mut effects = Vec::new();
     for spec in specs {
         check_name(&spec.name)?;
         let mut rng = stage_rng(seed, &format!("hidden.{}", spec.name));
-        let drawn = Effect::sample(&spec.name, &mut rng).ok_or_else(|| CorpusError::Option {
-            option: "--hidden-effect",
-            expected: "a catalogue effect".into(),
-            found: spec.name.clone(),
+        let drawn = Effect::sample(&spec.name, |a, b| rng.gen_range(a..=b)).ok_or_else(|| {
+            CorpusError::Option {
+                option: "--hidden-effect",
+                expected: "a catalogue effect".into(),
+                found: spec.name.clone(),
+            }
         })?;
         let mut values: BTreeMap<&str, f64> = BTreeMap::new();
         for (k, v) in &spec.params {
@@ -119,7 +206,7 @@ pub fn resolve(specs: &[HiddenSpec], seed: u64) -> Result<SensorModel, CorpusErr
         }
         effects.push(drawn.with_params(&values));
     }
-    Ok(SensorModel { effects })
+    Ok(Hidden { effects })
 }
 
 /// The baseline noise of every real image.
@@ -130,12 +217,12 @@ pub const BASELINE_NOISE: Effect = Effect::Noise {
 
 /// The model the real images are made with: the hidden effects plus the baseline noise
 /// unless a hidden `noise` replaces it.
-pub fn real_model(hidden: &SensorModel) -> SensorModel {
+pub fn real_model(hidden: &Hidden) -> Vec<Effect> {
     let mut effects = hidden.effects.clone();
     if !effects.iter().any(|e| matches!(e, Effect::Noise { .. })) {
         effects.push(BASELINE_NOISE);
     }
-    SensorModel { effects }
+    effects
 }
 
 /// Azimuth error of a surveyed light that casts hidden shadows, degrees (either sign).
@@ -147,12 +234,8 @@ pub const RECORD_ELEVATION_ERROR_DEG: std::ops::Range<f64> = 1.0..2.0;
 /// must be found, `light` off by a drawn survey error ([`RECORD_AZIMUTH_ERROR_DEG`],
 /// [`RECORD_ELEVATION_ERROR_DEG`], random signs, stage RNG `lighting.record`; rounded to
 /// 0.1° like the light itself). The ambient share is recorded as it is.
-pub fn recorded_light(light: &Light, hidden: &SensorModel, seed: u64) -> Light {
-    if !hidden
-        .effects
-        .iter()
-        .any(|e| matches!(e, Effect::Shadows { .. }))
-    {
+pub fn recorded_light(light: &Light, hidden: &Hidden, seed: u64) -> Light {
+    if hidden.shadow_light().is_none() {
         return *light;
     }
     let mut rng = stage_rng(seed, "lighting.record");
@@ -248,14 +331,14 @@ mod tests {
 
     #[test]
     fn baseline_noise_only_without_hidden_noise() {
-        let plain = real_model(&SensorModel::default());
-        assert_eq!(plain.effects, vec![BASELINE_NOISE]);
-        let noisy = SensorModel {
+        let plain = real_model(&Hidden::default());
+        assert_eq!(plain, vec![BASELINE_NOISE]);
+        let noisy = Hidden {
             effects: vec![Effect::Noise {
                 gain: 0.3,
                 read_sigma: 2.0,
             }],
         };
-        assert_eq!(real_model(&noisy).effects.len(), 1);
+        assert_eq!(real_model(&noisy).len(), 1);
     }
 }

@@ -9,16 +9,18 @@ use std::path::Path;
 use std::time::Instant;
 
 use rand::Rng;
-use regolith_validator::render::{Geometry, HeightfieldTracer, Light, Scene, Sphere};
-use regolith_validator::sensor::SensorModel;
+use regolith_format::frames::Pose;
+use regolith_format::grid::AlbedoGrid;
+use regolith_format::lighting::Light;
 
 use crate::campaign::{self, CampaignPlan};
-use crate::effects::{self, HiddenSpec};
+use crate::captures::{CaptureRenderer, CaptureScene};
+use crate::effects::{self, Hidden, HiddenSpec};
 use crate::instruments::{bouguet, e57, las, navcam, opencv, ply, riegl, sfm, vicon};
 use crate::presets::{Preset, PresetConfig};
 use crate::seeding::{stage_hash, stage_rng};
 use crate::sink::Sink;
-use crate::terrain::materials::MARKER_ALBEDO;
+use crate::terrain::raycast::TerrainCaster;
 use crate::terrain::Terrain;
 use crate::truth::{self, CaptureTruth, ScanTruth};
 use crate::CorpusError;
@@ -52,10 +54,11 @@ pub struct Summary {
     pub stage_seconds: Vec<(String, f64)>,
 }
 
-/// Generates a campaign into `out`.
+/// Generates a campaign into `out`, its NavCam frames made by `renderer`.
 pub fn generate(
     opts: &GenerateOptions,
     out: &Path,
+    renderer: &dyn CaptureRenderer,
     progress: &dyn Fn(&str, f64),
 ) -> Result<Summary, CorpusError> {
     let mut cfg = PresetConfig::of(opts.preset);
@@ -79,15 +82,9 @@ pub fn generate(
     let hidden = effects::resolve(&opts.hidden, seed)?;
     // A hidden `shadows` is cast by the lab light itself: the lab light (and so `[lighting]`)
     // takes its direction (see `effects`).
-    for e in &hidden.effects {
-        if let regolith_validator::sensor::Effect::Shadows {
-            azimuth_deg,
-            elevation_deg,
-        } = *e
-        {
-            light.azimuth_deg = azimuth_deg;
-            light.elevation_deg = elevation_deg;
-        }
+    if let Some((azimuth_deg, elevation_deg)) = hidden.shadow_light() {
+        light.azimuth_deg = azimuth_deg;
+        light.elevation_deg = elevation_deg;
     }
     // What the campaign file records: the lab light as surveyed, a few degrees off the true
     // one when it casts hidden shadows (see `effects::recorded_light`).
@@ -101,7 +98,7 @@ pub fn generate(
         cfg.cell_m
     };
     let terrain = Terrain::build(&cfg, cell, seed);
-    let tracer = HeightfieldTracer::new(&terrain.height);
+    let tracer = TerrainCaster::new(&terrain.height);
     let texture_albedo = hidden.albedo(&terrain.albedo);
     lap("terrain", &mut times);
 
@@ -167,8 +164,15 @@ pub fn generate(
     sink.write("calib/rig_markers.csv", rig.as_bytes())?;
     lap("vicon+calibration", &mut times);
 
+    let scene = CaptureScene {
+        cfg: &cfg,
+        seed,
+        terrain: &terrain,
+        light,
+        effects: &effects::real_model(&hidden),
+    };
     let captures = write_captures(
-        &cfg, seed, &terrain, &tracer, &light, &head, &hidden, &mut sink, progress,
+        &scene, &tracer, &head, &hidden, renderer, &mut sink, progress,
     )?;
     lap("captures", &mut times);
 
@@ -210,6 +214,7 @@ pub fn generate(
     sink.write("campaign.toml", campaign::campaign_toml(&plan).as_bytes())?;
     sink.write("README.md", campaign::README.as_bytes())?;
     let hidden_truth = truth::HiddenTruth::new(&hidden, &effects::real_model(&hidden));
+    sink.write_json("truth/renderer.json", &renderer.info())?;
     let cams = truth::CamerasTruth::new(&head, &hidden, &texture_cam);
     truth::write_all(
         &mut sink,
@@ -237,8 +242,8 @@ fn write_scans(
     cfg: &PresetConfig,
     opts: &GenerateOptions,
     terrain: &Terrain,
-    tracer: &HeightfieldTracer,
-    texture_albedo: &regolith_validator::render::AlbedoGrid,
+    tracer: &TerrainCaster,
+    texture_albedo: &AlbedoGrid,
     sink: &mut Sink,
     progress: &dyn Fn(&str, f64),
 ) -> Result<Vec<ScanTruth>, CorpusError> {
@@ -298,40 +303,22 @@ fn write_scans(
     Ok(out)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// Draws the capture locations, writes their Vicon files, has `renderer` make the frames of
+/// every shot and writes them.
 fn write_captures(
-    cfg: &PresetConfig,
-    seed: u64,
-    terrain: &Terrain,
-    tracer: &HeightfieldTracer,
-    light: &Light,
+    scene: &CaptureScene<'_>,
+    tracer: &TerrainCaster,
     head: &navcam::StereoHead,
-    hidden: &SensorModel,
+    hidden: &Hidden,
+    renderer: &dyn CaptureRenderer,
     sink: &mut Sink,
     progress: &dyn Fn(&str, f64),
 ) -> Result<Vec<CaptureTruth>, CorpusError> {
+    let (cfg, seed) = (scene.cfg, scene.seed);
     let mut prng = stage_rng(seed, "captures");
-    let poses = navcam::capture_poses(cfg, terrain, tracer, &mut prng);
-    let geometry = Geometry::Heightfield {
-        grid: terrain.height.clone(),
-        albedo: terrain.albedo.clone(),
-    };
-    // The balls are exact spheres in the captures (their caps in the grid lie inside them),
-    // so a ball is seen where a real one would be, see `Sphere`.
-    let balls = terrain
-        .markers
-        .iter()
-        .map(|m| Sphere {
-            centre: m.centre_m,
-            radius: m.radius_m,
-            albedo: MARKER_ALBEDO as f32,
-        })
-        .collect();
-    let scene = Scene::new(&geometry).with_spheres(balls);
-    let model = effects::real_model(hidden);
-    let mut out = Vec::new();
+    let poses = navcam::capture_poses(cfg, scene.terrain, tracer, &mut prng);
+    let mut shots = Vec::new();
     for (i, cap) in poses.iter().enumerate() {
-        progress("captures", i as f64 / poses.len().max(1) as f64);
         let mut rrng = stage_rng(seed, &format!("vicon.{}", cap.name));
         let balls: Vec<[f64; 3]> = navcam::RIG_BALLS
             .iter()
@@ -345,29 +332,28 @@ fn write_captures(
             vicon::nexus_csv("Rig", &names, &tracks, first).as_bytes(),
         )?;
         let noise_seed = stage_hash(seed, "captures.noise", i as u64);
-        let frames = navcam::render_frames(
-            &scene,
-            light,
-            head,
-            cap,
-            &model,
-            cfg.supersample,
-            noise_seed,
-        );
+        shots.extend(navcam::shots(head, cap, hidden, noise_seed));
+    }
+    let frames = renderer.frames(scene, &shots, &|f| progress("captures", f))?;
+    let mut out = Vec::new();
+    for (cap, pair) in poses.iter().zip(shots.chunks(2).zip(frames.chunks(2))) {
+        let (pair_shots, pair_frames) = pair;
         let mut files = Vec::new();
-        for (k, (side, frame)) in [("left", "a"), ("left", "b"), ("right", "a"), ("right", "b")]
-            .iter()
-            .enumerate()
-        {
-            let cam = &frames.cameras[k / 2];
-            let rel = format!("captures/{}_{side}_{frame}.png", cap.name);
-            let pixels = frames.images.get(k).map_or(&[][..], Vec::as_slice);
-            let bytes = navcam::png_grey(pixels, cam.width, cam.height)
-                .map_err(CorpusError::encode("PNG", Path::new(&rel)))?;
-            sink.write(&rel, &bytes)?;
-            files.push(rel);
+        let mut true_poses = [Pose::IDENTITY; 2];
+        for (k, (shot, images)) in pair_shots.iter().zip(pair_frames).enumerate() {
+            let side = if k == 0 { "left" } else { "right" };
+            if let Some(p) = true_poses.get_mut(k) {
+                *p = shot.ground_from_camera;
+            }
+            for (frame, pixels) in ["a", "b"].iter().zip(images) {
+                let rel = format!("captures/{}_{side}_{frame}.png", cap.name);
+                let bytes = navcam::png_grey(pixels, shot.camera.width, shot.camera.height)
+                    .map_err(CorpusError::encode("PNG", Path::new(&rel)))?;
+                sink.write(&rel, &bytes)?;
+                files.push(rel);
+            }
         }
-        out.push(CaptureTruth::new(cap, &frames, files));
+        out.push(CaptureTruth::new(cap, true_poses, files));
     }
     Ok(out)
 }

@@ -7,20 +7,29 @@
 //! `truth/` folder the campaign never references.
 //!
 //! Design decisions:
-//! * **One truth, traced by everyone.** The true surface is a fine [`HeightGrid`] of the
-//!   renderer's own type; laser rays, marker visibility and captures all go through the
-//!   validator's tracer/renderer, so the truth files describe exactly what was measured.
+//! * **No code shared with the validator.** The corpus makes the data that test the
+//!   validator, so it never uses the validator's forward model: the true surface is a fine
+//!   [`HeightGrid`] (the format's type) traced by this crate's own caster
+//!   ([`terrain::raycast`]) for laser rays and marker visibility, and the NavCam frames come
+//!   from a [`captures::CaptureRenderer`]: an existing physically based renderer (Mitsuba 3)
+//!   plus this crate's own camera ([`camera`]), or — for fast unit tests of the fitting code
+//!   only, from another crate — the validator's own model, recorded as such in
+//!   `truth/renderer.json`.
 //! * **Deterministic per seed.** Each stage has its own `ChaCha8Rng` from `hash(seed, stage)`
 //!   ([`seeding`]); parallel loops use indexed `par_iter().map().collect()` with one RNG per
 //!   item; nothing reads the clock. Files are byte-identical for any thread count.
-//! * **Hidden effects are shared definitions.** [`effects`] draws them from the validator's
-//!   sensor catalogue and records them only in `truth/hidden.json`.
+//! * **Hidden effects are shared words.** [`effects`] draws them from the format's effect
+//!   catalogue (`regolith_format::effects`), applies them with this crate's own code and
+//!   records them only in `truth/hidden.json`.
 //!
-//! Layout: [`terrain`] (relief, materials), [`instruments`] (one module per device/format),
+//! Layout: [`terrain`] (relief, materials, ray casting), [`instruments`] (one module per
+//! device/format), [`captures`] + [`camera`] (the NavCam frames),
 //! [`campaign`] (campaign.toml + README), [`truth`], [`bad_inputs`], [`generate`] here.
 
 pub mod bad_inputs;
+pub mod camera;
 pub mod campaign;
+pub mod captures;
 pub mod effects;
 mod error;
 mod generate;
@@ -37,4 +46,4 @@ pub use error::CorpusError;
 pub use generate::{generate, GenerateOptions, Summary};
 pub use presets::Preset;
 #[doc(no_inline)]
-pub use regolith_validator::render::HeightGrid;
+pub use regolith_format::grid::HeightGrid;

@@ -20,12 +20,14 @@
 use std::collections::BTreeMap;
 
 use regolith_format::camera_model::CameraModel;
+use regolith_format::effects::Effect;
 use regolith_format::frames::Pose;
-use regolith_validator::render::{HeightGrid, Light};
-use regolith_validator::sensor::{Effect, SensorModel};
+use regolith_format::grid::HeightGrid;
+use regolith_format::lighting::Light;
 use serde::Serialize;
 
-use crate::instruments::navcam::{CapturePose, Frames, StereoHead};
+use crate::effects::Hidden;
+use crate::instruments::navcam::{CapturePose, StereoHead};
 use crate::instruments::riegl::Scan;
 use crate::instruments::sfm::{GcpTruth, Similarity};
 use crate::presets::ScannerSpec;
@@ -112,19 +114,20 @@ pub struct CaptureTruth {
 }
 
 impl CaptureTruth {
-    /// Collects the truth of one capture; `files` = left a, left b, right a, right b.
-    pub fn new(cap: &CapturePose, frames: &Frames, files: Vec<String>) -> CaptureTruth {
+    /// Collects the truth of one capture: the true left and right `ground_from_camera`, and
+    /// `files` = left a, left b, right a, right b.
+    pub fn new(cap: &CapturePose, poses: [Pose; 2], files: Vec<String>) -> CaptureTruth {
         let (l, r) = files.split_at(2.min(files.len()));
         CaptureTruth {
             name: cap.name.clone(),
             target_marker: cap.target.clone(),
             ground_from_rig: cap.ground_from_rig,
             left: CameraShot {
-                ground_from_camera: frames.poses[0],
+                ground_from_camera: poses[0],
                 files: l.to_vec(),
             },
             right: CameraShot {
-                ground_from_camera: frames.poses[1],
+                ground_from_camera: poses[1],
                 files: r.to_vec(),
             },
         }
@@ -153,7 +156,7 @@ pub struct CamerasTruth {
 
 impl CamerasTruth {
     /// Collects the camera truth.
-    pub fn new(head: &StereoHead, hidden: &SensorModel, texture: &CameraModel) -> CamerasTruth {
+    pub fn new(head: &StereoHead, hidden: &Hidden, texture: &CameraModel) -> CamerasTruth {
         let pair = |c: &CameraModel, hidden_applies: bool| CameraTruth {
             calibrated: c.clone(),
             r#true: if hidden_applies {
@@ -191,10 +194,10 @@ pub struct HiddenTruth {
 
 impl HiddenTruth {
     /// Collects the hidden-effect truth.
-    pub fn new(hidden: &SensorModel, real: &SensorModel) -> HiddenTruth {
+    pub fn new(hidden: &Hidden, real: &[Effect]) -> HiddenTruth {
         let mut notes = BTreeMap::new();
-        notes.insert("image effects", "vignetting, blur, exposure, noise, gamma: applied to every captures/*.png by SensorModel::image (baseline noise gain 0.05, read 0.8 DN unless noise is hidden)");
-        notes.insert("shadows", "captures rendered with cast shadows of the true light (truth/lighting.json); campaign.toml [lighting] records it 2-4 deg off in azimuth and 1-2 deg in elevation, as surveyed; a plain simulation draws no cast shadows");
+        notes.insert("image effects", "vignetting, blur, exposure, noise, gamma: applied to every captures/*.png by the capture renderer of truth/renderer.json (baseline noise gain 0.05, read 0.8 DN unless noise is hidden)");
+        notes.insert("shadows", "captures rendered with cast shadows of the true light (truth/lighting.json); campaign.toml [lighting] records it 2-4 deg off in azimuth and 1-2 deg in elevation, as surveyed; the validator-model renderer draws cast shadows only then, a physical renderer always (the lamp is low then)");
         notes.insert(
             "distortion",
             "captures rendered with k1+dk1, k2+dk2; calib/*.yaml hold the calibrated k1, k2",
@@ -203,7 +206,7 @@ impl HiddenTruth {
         notes.insert("texture-lowpass", "SfM vertex colours (on top of their own 1 cm blur) and laser reflectance are computed from the albedo blurred by sigma_m; captures use the true albedo");
         HiddenTruth {
             effects: hidden.effects.clone(),
-            real_image_model: real.effects.clone(),
+            real_image_model: real.to_vec(),
             notes,
         }
     }

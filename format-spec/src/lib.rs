@@ -12,6 +12,9 @@
 //!   captures, report).
 //! * [`camera_model`]: the pinhole + Brown–Conrady camera model and its pixel convention.
 //! * [`frames`]: rigid poses (`ground_from_camera`) and quaternion helpers.
+//! * [`grid`], [`lighting`], [`effects`]: the words the corpus generator and the validator
+//!   share (terrain grids, the lab light, the catalogue of capture effects), so that neither
+//!   borrows the other's implementation.
 //!
 //! ```
 //! use regolith_format::canonical_json;
@@ -23,10 +26,13 @@
 
 pub mod camera_model;
 pub mod canonical_json;
+pub mod effects;
 pub mod error;
 pub mod frames;
+pub mod grid;
 pub mod hash;
 pub mod kinds;
+pub mod lighting;
 pub mod limits;
 pub mod manifest;
 

@@ -327,7 +327,13 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         captures: setup.captures,
         hidden: specs,
     };
-    generate(&opts, &camp, &|_, _| {}).unwrap();
+    generate(
+        &opts,
+        &camp,
+        &regolith_model_captures::ModelCaptures,
+        &|_, _| {},
+    )
+    .unwrap();
     let c = regolith_compiler::ingest::campaign::load(&camp).unwrap();
     let writer = Writer::create_or_open(dir.join("db")).unwrap();
     regolith_compiler::compile::compile(

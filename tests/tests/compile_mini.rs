@@ -26,7 +26,13 @@ fn mini(dir: &Path, seed: u64) {
         captures: None,
         hidden: vec![],
     };
-    generate(&opts, dir, &|_, _| {}).unwrap();
+    generate(
+        &opts,
+        dir,
+        &regolith_model_captures::ModelCaptures,
+        &|_, _| {},
+    )
+    .unwrap();
 }
 
 fn json(path: &Path) -> Value {

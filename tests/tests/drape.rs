@@ -35,6 +35,7 @@ fn sfm_colours_drape_on_the_laser_geometry() {
             hidden: vec![],
         },
         &camp,
+        &regolith_model_captures::ModelCaptures,
         &|_, _| {},
     )
     .unwrap();

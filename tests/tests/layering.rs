@@ -1,5 +1,7 @@
 //! The crate graph follows ARCHITECTURE.md: format ← reader ← {compiler, validator} ← cli;
-//! corpus → format + validator; tests → all. The reader never pulls compiler dependencies.
+//! corpus → format only (it makes the validator's test data, so it must not share its code);
+//! model-captures → format + validator + corpus; tests → all. The reader never pulls compiler
+//! dependencies.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -55,9 +57,10 @@ fn crate_layering_is_respected() {
             "regolith-validator",
             &["regolith-format", "regolith-reader"][..],
         ),
+        ("regolith-corpus", &["regolith-format"][..]),
         (
-            "regolith-corpus",
-            &["regolith-format", "regolith-validator"][..],
+            "regolith-model-captures",
+            &["regolith-format", "regolith-validator", "regolith-corpus"][..],
         ),
         (
             "regolith-cli",
@@ -67,6 +70,7 @@ fn crate_layering_is_respected() {
                 "regolith-compiler",
                 "regolith-validator",
                 "regolith-corpus",
+                "regolith-model-captures",
             ][..],
         ),
         (
@@ -77,6 +81,7 @@ fn crate_layering_is_respected() {
                 "regolith-compiler",
                 "regolith-validator",
                 "regolith-corpus",
+                "regolith-model-captures",
             ][..],
         ),
     ]
@@ -99,6 +104,44 @@ fn crate_layering_is_respected() {
         assert!(
             !forbidden_in_reader.contains(&dep.as_str()),
             "the reader must stay small: it depends on {dep}"
+        );
+    }
+}
+
+/// The corpus makes the data that test the validator: no edge of any kind (normal, dev or
+/// build) may lead from it to the validator, directly or through another crate.
+#[test]
+fn the_corpus_shares_no_code_with_the_validator() {
+    let out = Command::new(env!("CARGO"))
+        .args([
+            "tree",
+            "-p",
+            "regolith-corpus",
+            "-e",
+            "normal,dev,build",
+            "--prefix",
+            "none",
+            "--offline",
+        ])
+        .current_dir(regolith_tests::workspace_root())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let tree = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        tree.lines().any(|l| l.starts_with("regolith-format ")),
+        "cargo tree lists the corpus's dependencies:\n{tree}"
+    );
+    for crate_name in ["regolith-validator", "regolith-model-captures"] {
+        assert!(
+            !tree
+                .lines()
+                .any(|l| l.starts_with(&format!("{crate_name} "))),
+            "regolith-corpus depends on {crate_name}:\n{tree}"
         );
     }
 }

@@ -118,7 +118,13 @@ fn aligns_the_mini_sfm_mesh_onto_the_laser_scans() {
         captures: None,
         hidden: vec![],
     };
-    generate(&opts, dir, &|_, _| {}).unwrap();
+    generate(
+        &opts,
+        dir,
+        &regolith_model_captures::ModelCaptures,
+        &|_, _| {},
+    )
+    .unwrap();
     let limits = Limits::default();
     let mesh = ply::read_mesh_path(&dir.join("sfm/mesh.ply"), &limits).unwrap();
     let wrl = vrml::read_path(&dir.join("sfm/mesh.wrl"), &limits).unwrap();
@@ -204,7 +210,13 @@ fn laser_only_scale_within_half_a_percent_on_more_terrains() {
             captures: None,
             hidden: vec![],
         };
-        generate(&opts, dir, &|_, _| {}).unwrap();
+        generate(
+            &opts,
+            dir,
+            &regolith_model_captures::ModelCaptures,
+            &|_, _| {},
+        )
+        .unwrap();
         let mesh = ply::read_mesh_path(&dir.join("sfm/mesh.ply"), &Limits::default()).unwrap();
         let what = format!("seed {seed}");
         let out = align(&stage, &mesh, &laser_ground(dir), &what);

@@ -22,6 +22,7 @@ fn certificates_are_bound_stored_and_verified() {
             hidden: vec![],
         },
         &camp,
+        &regolith_model_captures::ModelCaptures,
         &|_, _| {},
     )
     .unwrap();

@@ -42,7 +42,7 @@ def main():
         d = a.out / f"seed{seed}"
         camp, db = d / "campaign", d / "db"
         if not (db / "regolith.db").exists():
-            run([a.bin, "corpus", "generate", "--preset", "mini", "--seed", str(seed), "--out", camp])
+            run([a.bin, "corpus", "generate", "--renderer", "model", "--preset", "mini", "--seed", str(seed), "--out", camp])
             toml = (camp / "campaign.toml").read_text()
             toml = re.sub(r"raster_m = \[0\.02, 0\.01\]", "raster_m = [0.05, 0.02, 0.01]", toml, count=1)
             (camp / "campaign.toml").write_text(toml)

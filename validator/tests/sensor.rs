@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 
-use rand::SeedableRng;
+use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
@@ -190,7 +190,7 @@ fn neutral_effects_change_nothing_and_samples_stay_in_range() {
 
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     for name in Effect::NAMES {
-        let e = Effect::sample(name, &mut rng).unwrap();
+        let e = Effect::sample(name, |a, b| rng.gen_range(a..=b)).unwrap();
         assert_eq!(e.name(), name);
         let ranges = Effect::default_range(name).unwrap();
         let params = e.params();

@@ -1,12 +1,19 @@
 //! `regolith corpus generate`: a synthetic campaign with ground truth, with a progress bar.
+//!
+//! The NavCam frames come from Mitsuba through the corpus's own camera by default (a render
+//! cache makes repeated campaigns cheap and lets CI regenerate the reference campaigns without
+//! a renderer); `--renderer model` uses the validator's own forward model, for unit tests.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use regolith_corpus::captures::physical::{PhysicalCaptures, PhysicalOptions};
+use regolith_corpus::captures::CaptureRenderer;
 use regolith_corpus::{effects, generate, GenerateOptions, Preset};
+use regolith_model_captures::ModelCaptures;
 
 use super::print_json;
-use crate::args::{CorpusAction, PresetArg};
+use crate::args::{CorpusAction, PresetArg, RendererArg};
 use crate::progress::Progress;
 use crate::Outcome;
 
@@ -19,6 +26,10 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         hidden_effect,
         effect_param,
         out,
+        renderer,
+        renders,
+        no_render,
+        spp,
         bad_inputs,
     } = action;
     let out = &crate::paths::absolute(out)?;
@@ -40,9 +51,24 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         captures: captures.map(|n| n as usize),
         hidden,
     };
+    let renderer: Box<dyn CaptureRenderer> = match renderer {
+        RendererArg::Model => Box::new(ModelCaptures),
+        RendererArg::Mitsuba => {
+            let cache = match renders {
+                Some(dir) => crate::paths::absolute(dir)?,
+                None => default_cache(),
+            };
+            let driver = if *no_render { None } else { mitsuba_driver() };
+            let mut o = PhysicalOptions::new(cache, driver);
+            o.spp = *spp;
+            Box::new(PhysicalCaptures::new(o))
+        }
+    };
     let progress = Progress::new();
-    let summary = generate(&opts, out, &|stage, f| progress.report(stage, f))
-        .with_context(|| format!("generating into {}", out.display()))?;
+    let summary = generate(&opts, out, renderer.as_ref(), &|stage, f| {
+        progress.report(stage, f)
+    })
+    .with_context(|| format!("generating into {}", out.display()))?;
     progress.finish();
     let bad = match bad_inputs {
         Some(dir) => Some(regolith_corpus::write_bad_inputs(dir)?),
@@ -72,4 +98,25 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         }
     }
     Ok(Outcome::Ok)
+}
+
+/// `$REGOLITH_RENDER_CACHE`, else `~/.cache/regolith/renders`, else `.regolith-renders`.
+fn default_cache() -> PathBuf {
+    if let Some(dir) = std::env::var_os("REGOLITH_RENDER_CACHE") {
+        return PathBuf::from(dir);
+    }
+    match std::env::var_os("HOME") {
+        Some(home) => Path::new(&home).join(".cache/regolith/renders"),
+        None => PathBuf::from(".regolith-renders"),
+    }
+}
+
+/// The Mitsuba driver: `$REGOLITH_MITSUBA_DRIVER`, else `tools/render/mitsuba_captures.py` of
+/// the source tree this binary was built from, if it is still there.
+fn mitsuba_driver() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("REGOLITH_MITSUBA_DRIVER") {
+        return Some(PathBuf::from(p));
+    }
+    let built = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools/render/mitsuba_captures.py");
+    built.is_file().then_some(built)
 }

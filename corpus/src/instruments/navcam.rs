@@ -10,20 +10,21 @@
 //!   0.9–1.0 m above the local surface, pitched down 25–40°, rolled ≤ 2°, with the marker
 //!   offset from the image centre by a few degrees; poses whose camera would leave the bed or
 //!   whose marker is hidden are redrawn.
-//! * Frames: the *true* cameras (`SensorModel::camera` = calibration + hidden distortion, and
-//!   `SensorModel::pose` = rig pose · hidden bias for the left camera, the right following
-//!   rigidly) render the true surface and albedo under the campaign light, with cast shadows
-//!   only if `shadows` is hidden; two frames per pose get independent noise seeds.
+//! * Shots: the *true* cameras ([`Hidden::camera`] = calibration + hidden distortion, and
+//!   [`Hidden::rig_pose`] = rig pose · hidden bias for the left camera, the right following
+//!   rigidly) are what a [`crate::captures::CaptureRenderer`] renders; two frames per pose get
+//!   independent noise seeds.
 
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use regolith_format::camera_model::{CameraModel, Distortion};
 use regolith_format::frames::{quat_from_axis_angle, Pose};
-use regolith_validator::render::{HeightfieldTracer, Light, RenderOptions, Scene, View};
-use regolith_validator::sensor::{quantise_u8, Placement, SensorModel};
 
 use super::riegl::marker_visible;
+use crate::captures::Shot;
+use crate::effects::Hidden;
 use crate::presets::PresetConfig;
+use crate::terrain::raycast::TerrainCaster;
 use crate::terrain::Terrain;
 
 /// Vicon balls on the stereo head, in the left-camera (rig) frame, metres.
@@ -126,7 +127,7 @@ pub fn look_pose(eye: [f64; 3], h: f64, p: f64, roll: f64) -> Pose {
 pub fn capture_poses(
     cfg: &PresetConfig,
     terrain: &Terrain,
-    tracer: &HeightfieldTracer,
+    tracer: &TerrainCaster,
     rng: &mut ChaCha8Rng,
 ) -> Vec<CapturePose> {
     let mut out = Vec::new();
@@ -151,7 +152,7 @@ pub fn capture_poses(
 fn pose_seeing(
     cfg: &PresetConfig,
     terrain: &Terrain,
-    tracer: &HeightfieldTracer,
+    tracer: &TerrainCaster,
     m: &crate::terrain::TrueMarker,
     rng: &mut ChaCha8Rng,
 ) -> Option<Pose> {
@@ -183,68 +184,28 @@ fn pose_seeing(
     None
 }
 
-/// The true poses and cameras of one capture, and its four 8-bit frames (left a, left b,
-/// right a, right b).
-pub struct Frames {
-    /// True left and right cameras (with hidden distortion).
-    pub cameras: [CameraModel; 2],
-    /// True left and right `ground_from_camera` (with hidden pose bias).
-    pub poses: [Pose; 2],
-    /// Grey 8-bit pixels, row-major.
-    pub images: [Vec<u8>; 4],
-}
-
-/// Renders the frames of one capture.
-#[allow(clippy::too_many_arguments)]
-pub fn render_frames(
-    scene: &Scene<'_>,
-    light: &Light,
+/// The two shots (left, right) of one capture: true cameras and poses; `noise_seed` is the
+/// capture's, the left camera's frames use `+0`, `+1` and the right's `+4`, `+5`.
+pub fn shots(
     head: &StereoHead,
     capture: &CapturePose,
-    model: &SensorModel,
-    supersample: u32,
+    hidden: &Hidden,
     noise_seed: u64,
-) -> Frames {
-    let left_pose = model.pose(&Placement::lone(capture.ground_from_rig));
+) -> [Shot; 2] {
+    let left_pose = hidden.rig_pose(capture.ground_from_rig);
     let right_pose = left_pose.compose(&head.right_from_left.inverse());
-    let cameras = [model.camera(&head.left), model.camera(&head.right)];
-    let (opts, _) = model.render_options(&RenderOptions {
-        distort: true,
-        shadows: false,
-        supersample,
-        // The corpus camera point-samples the true albedo: the corpus campaigns, and every
-        // threshold and tolerance calibrated on them, were made this way (format of the corpus
-        // v1); an integrating camera is a corpus version change.
-        filter_textures: false,
-    });
-    let mut images: Vec<Vec<u8>> = Vec::new();
-    for (i, (cam, pose)) in cameras.iter().zip([left_pose, right_pose]).enumerate() {
-        let r = scene.render(
-            light,
-            &View {
-                camera: cam.clone(),
-                ground_from_camera: pose,
-            },
-            &opts,
-        );
-        for frame in 0..2u64 {
-            let seed = noise_seed.wrapping_add(4 * i as u64 + frame);
-            images.push(quantise_u8(&model.image(
-                &r.radiance,
-                r.width,
-                r.height,
-                cam,
-                seed,
-            )));
-        }
-    }
-    let mut it = images.into_iter();
-    let mut next = || it.next().unwrap_or_default();
-    Frames {
-        cameras,
-        poses: [left_pose, right_pose],
-        images: [next(), next(), next(), next()],
-    }
+    let shot = |i: usize, side: &str, calibrated: &CameraModel, pose: Pose| Shot {
+        name: format!("{}_{side}", capture.name),
+        camera: hidden.camera(calibrated),
+        calibrated: calibrated.clone(),
+        ground_from_camera: pose,
+        camera_index: i,
+        noise_seed: noise_seed.wrapping_add(4 * i as u64),
+    };
+    [
+        shot(0, "left", &head.left, left_pose),
+        shot(1, "right", &head.right, right_pose),
+    ]
 }
 
 /// Encodes an 8-bit grey image as PNG (fixed encoder settings, reproducible bytes).

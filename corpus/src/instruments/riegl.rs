@@ -6,7 +6,7 @@
 //! SOCS → ground pose is a yaw that points the middle of the φ range at the bed centre, times a
 //! small levelling error (≤ 0.3°, drawn from the seed), at the station position; it is written
 //! only to `truth/scans.json`. Rays are cast column by column (the scanner's line order) with
-//! the renderer's [`HeightfieldTracer`], so occlusion is exact, and the range gets Gaussian noise
+//! the corpus's own [`TerrainCaster`], so occlusion is exact, and the range gets Gaussian noise
 //! (default σ 8 mm) *along the ray*. Reflectance in dB is `10·log10(albedo · cos(incidence))`,
 //! minus 0.05 dB per metre of range (imperfect range correction), plus 0.3 dB noise; the
 //! retro-reflective balls therefore read close to 0 dB and the soil around −5 dB.
@@ -17,11 +17,12 @@ use rand::Rng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 use regolith_format::frames::{quat_from_axis_angle, Pose};
-use regolith_validator::render::{AlbedoGrid, HeightfieldTracer};
+use regolith_format::grid::AlbedoGrid;
 
 use crate::presets::ScannerSpec;
 use crate::seeding::{item_rng, stage_rng};
 use crate::sink::push_fixed;
+use crate::terrain::raycast::TerrainCaster;
 use crate::terrain::{GridShape, TrueMarker};
 
 /// Longest range considered, metres.
@@ -53,7 +54,7 @@ pub struct Scan {
 /// Scan simulation settings shared by all stations.
 pub struct ScanSetup<'a> {
     /// Tracer of the true surface.
-    pub tracer: &'a HeightfieldTracer,
+    pub tracer: &'a TerrainCaster,
     /// Albedo the reflectance is computed from (true, or low-passed when hidden).
     pub albedo: &'a AlbedoGrid,
     /// Markers.
@@ -185,7 +186,7 @@ fn tiepoints(
 }
 
 /// Whether the first surface on the line from `eye` to the ball centre is the ball itself.
-pub fn marker_visible(tracer: &HeightfieldTracer, eye: [f64; 3], m: &TrueMarker) -> bool {
+pub fn marker_visible(tracer: &TerrainCaster, eye: [f64; 3], m: &TrueMarker) -> bool {
     let d = [
         m.centre_m[0] - eye[0],
         m.centre_m[1] - eye[1],

@@ -19,7 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use rayon::prelude::*;
 use regolith_format::frames::{quat_from_axis_angle, Pose};
-use regolith_validator::render::AlbedoGrid;
+use regolith_format::grid::AlbedoGrid;
 use serde::Serialize;
 
 use crate::presets::PresetConfig;

@@ -6,7 +6,7 @@
 //! keyed by the seed and the cell centre, so they do not depend on evaluation order. The grid
 //! has the geometry of the height grid, so one bilinear lookup serves both.
 
-use regolith_validator::render::AlbedoGrid;
+use regolith_format::grid::AlbedoGrid;
 
 use super::synth::material;
 use super::GridShape;

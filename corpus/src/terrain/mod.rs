@@ -1,19 +1,20 @@
 //! The true terrain: a fine height grid, its albedo, and the marker balls sitting on it.
 //!
-//! The truth is a [`HeightGrid`] (the renderer's own type, so the "real" captures and the laser
-//! simulation trace exactly the surface written to `truth/height.exr`) on a 2.5–5 mm grid,
+//! The truth is a [`HeightGrid`] (the format's grid type; the laser simulation traces exactly
+//! the surface written to `truth/height.exr`, [`raycast`]) on a 2.5–5 mm grid,
 //! plus an [`AlbedoGrid`] of the same geometry. Marker balls are part of both: the ball caps are
 //! stamped into the heights and painted white, so the scanner sees them; the captures render
-//! them again as exact white spheres (`render::Sphere`) over the caps, which lie inside them,
+//! them again as exact white spheres over the caps, which lie inside them,
 //! since a cap faceted to the grid puts a ball's image 0.1–0.3 px off its centre's projection. [`synth`] builds the relief, [`materials`] the albedo; the small grid
 //! helpers below (bilinear sampling, box downsampling, Gaussian blur) are shared by the SfM
 //! mesh and the texture low-pass.
 
 pub mod materials;
+pub mod raycast;
 pub mod synth;
 
 use rayon::prelude::*;
-use regolith_validator::render::{AlbedoGrid, HeightGrid};
+use regolith_format::grid::{AlbedoGrid, HeightGrid};
 
 use crate::presets::{PresetConfig, MARKER_RADIUS_M};
 

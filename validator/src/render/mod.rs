@@ -49,38 +49,8 @@ use regolith_format::frames::Pose;
 
 pub use heightfield::{HeightfieldTracer, Hit};
 pub use mesh::MeshTracer;
-
-/// A regular height grid. Cell `(c, r)` has its centre at `x = origin_m[0] + c * cell_m`,
-/// `y = origin_m[1] - r * cell_m`; row 0 is the north (max y) row. `NaN` marks a hole.
-#[derive(Debug, Clone, PartialEq)]
-pub struct HeightGrid {
-    /// Ground x, y of the centre of cell (0, 0), the north-west cell.
-    pub origin_m: [f64; 2],
-    /// Cell size in metres.
-    pub cell_m: f64,
-    /// Number of columns.
-    pub width: usize,
-    /// Number of rows.
-    pub height: usize,
-    /// Heights in metres, row-major, `width * height` values.
-    pub z: Vec<f32>,
-}
-
-/// An albedo raster with the same geometry convention as [`HeightGrid`] but its own origin,
-/// cell size and dimensions (it may be finer than the height grid).
-#[derive(Debug, Clone, PartialEq)]
-pub struct AlbedoGrid {
-    /// Ground x, y of the centre of cell (0, 0), the north-west cell.
-    pub origin_m: [f64; 2],
-    /// Cell size in metres.
-    pub cell_m: f64,
-    /// Number of columns.
-    pub width: usize,
-    /// Number of rows.
-    pub height: usize,
-    /// Albedo in 0..1, row-major.
-    pub value: Vec<f32>,
-}
+pub use regolith_format::grid::{AlbedoGrid, HeightGrid};
+pub use regolith_format::lighting::Light;
 
 /// A triangle mesh in the ground frame (z up) with per-vertex albedo and an optional texture.
 #[derive(Debug, Clone, PartialEq)]
@@ -131,17 +101,6 @@ pub enum Geometry {
     },
     /// A triangle mesh with per-vertex albedo or a texture.
     Mesh(TriMeshF32),
-}
-
-/// A distant light (the sun) plus an ambient share.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Light {
-    /// Azimuth of the direction toward the light, degrees from +x toward +y.
-    pub azimuth_deg: f64,
-    /// Elevation of the light above the horizon, degrees.
-    pub elevation_deg: f64,
-    /// Share of ambient light, 0..1.
-    pub ambient: f64,
 }
 
 /// A camera and its pose.

@@ -18,7 +18,6 @@
 
 mod blur;
 pub mod detail;
-mod effects;
 pub mod image;
 
 use serde::{Deserialize, Serialize};
@@ -29,78 +28,15 @@ use regolith_format::frames::{quat_from_axis_angle, Pose};
 use crate::render::{AlbedoGrid, Geometry, Light, RenderOptions};
 
 pub use blur::{gaussian_blur, kernel_radius};
-pub use effects::{
-    distortion_shift, level_change_dn, ParamRange, MIN_DISTORTION_SHIFT, MIN_LEVEL_CHANGE_DN,
-};
 pub use image::quantise_u8;
+pub use regolith_format::effects::{
+    distortion_shift, level_change_dn, Effect, ParamRange, MIN_DISTORTION_SHIFT,
+    MIN_LEVEL_CHANGE_DN,
+};
 
 /// Ambient share of the light that [`SensorModel::render_options`] returns for a `shadows`
 /// effect (callers may overwrite it).
 pub const SHADOW_AMBIENT: f64 = 0.15;
-
-/// One effect of the catalogue.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "effect", rename_all = "kebab-case")]
-pub enum Effect {
-    /// cos⁴-law falloff with corner/centre ratio `1 - strength` (see [`image::vignetting_factor`]).
-    Vignetting {
-        /// 0 = none, 0.5 = corners at half the centre's radiance.
-        strength: f64,
-    },
-    /// Gaussian point-spread function.
-    Blur {
-        /// Standard deviation, pixels.
-        sigma_px: f64,
-    },
-    /// Shot noise (variance `gain * signal`, DN) plus Gaussian read noise; seeded.
-    Noise {
-        /// DN of variance per DN of signal.
-        gain: f64,
-        /// Read-noise standard deviation, DN.
-        read_sigma: f64,
-    },
-    /// Response curve `out = in^(1/gamma)` on normalised DN.
-    Gamma {
-        /// 1 = linear.
-        gamma: f64,
-    },
-    /// `out = gain * in + offset`, on normalised radiance (1.0 = 255 DN).
-    Exposure {
-        /// Multiplier.
-        gain: f64,
-        /// Black-level offset, normalised.
-        offset: f64,
-    },
-    /// Cast shadows of this light (a render-time effect).
-    Shadows {
-        /// Azimuth toward the light, degrees from +x toward +y.
-        azimuth_deg: f64,
-        /// Elevation of the light, degrees.
-        elevation_deg: f64,
-    },
-    /// Extra radial distortion added to the calibration's `k1`, `k2`.
-    Distortion {
-        /// Added to `k1`.
-        dk1: f64,
-        /// Added to `k2`.
-        dk2: f64,
-    },
-    /// A fixed offset between the calibrated and the true rig pose (the camera-to-rig
-    /// transform is off), in rig axes; every camera of the rig follows it ([`Placement`]).
-    /// On a lone camera the rig is the camera.
-    PoseBias {
-        /// Translation, metres, rig frame.
-        translation_m: [f64; 3],
-        /// Rotations about the rig x, y, z axes, degrees (applied x first, then y, then z).
-        rotation_deg: [f64; 3],
-    },
-    /// The entry's texture lacks the detail a ground Gaussian of this size removes: sample
-    /// renders add procedural detail of that spectrum ([`detail`]).
-    TextureLowpass {
-        /// Standard deviation, metres on the ground.
-        sigma_m: f64,
-    },
-}
 
 /// Where a camera was when it took a frame: its measured pose, and its place on the rig whose
 /// frame a `pose-bias` is in (registry: the bias moves the rig, its cameras follow rigidly).

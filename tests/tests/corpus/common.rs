@@ -1,5 +1,5 @@
 //! Shared helpers of the corpus self-checks: one mini campaign per process, truth readers.
-#![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -30,6 +30,7 @@ pub fn mini(seed: u64, hidden: &[(&str, &[(&str, f64)])]) -> PathBuf {
             hidden: specs,
         },
         &dir,
+        &regolith_model_captures::ModelCaptures,
         &|_, _| {},
     )
     .unwrap();

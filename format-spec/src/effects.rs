@@ -1,4 +1,11 @@
-//! The effect catalogue: names, parameters, plausible ranges and construction from values.
+//! The effect catalogue: the ways a real capture differs from a plain render — names,
+//! parameters, plausible ranges and construction from values.
+//!
+//! This is vocabulary, not an implementation: the corpus generator hides these effects in the
+//! captures it makes with its own camera, and the validator's gap workflow fits them back with
+//! its own sensor model. Both share the words (names are the serde tags, in kebab-case, listed
+//! in `format-spec/registry.md`, with the meaning of every parameter) and never each other's
+//! code, so a corpus campaign can test the validator without being made by its forward model.
 //!
 //! One builder ([`Effect::build`]) turns a name and a parameter map into an effect; sampling
 //! random effects for the corpus, replacing parameters while fitting, and the ranges all go
@@ -8,9 +15,71 @@
 
 use std::collections::BTreeMap;
 
-use rand::Rng;
+use serde::{Deserialize, Serialize};
 
-use super::Effect;
+/// One effect of the catalogue.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "effect", rename_all = "kebab-case")]
+pub enum Effect {
+    /// cos⁴-law falloff with corner/centre ratio `1 - strength` (see the validator's `sensor::image::vignetting_factor`).
+    Vignetting {
+        /// 0 = none, 0.5 = corners at half the centre's radiance.
+        strength: f64,
+    },
+    /// Gaussian point-spread function.
+    Blur {
+        /// Standard deviation, pixels.
+        sigma_px: f64,
+    },
+    /// Shot noise (variance `gain * signal`, DN) plus Gaussian read noise; seeded.
+    Noise {
+        /// DN of variance per DN of signal.
+        gain: f64,
+        /// Read-noise standard deviation, DN.
+        read_sigma: f64,
+    },
+    /// Response curve `out = in^(1/gamma)` on normalised DN.
+    Gamma {
+        /// 1 = linear.
+        gamma: f64,
+    },
+    /// `out = gain * in + offset`, on normalised radiance (1.0 = 255 DN).
+    Exposure {
+        /// Multiplier.
+        gain: f64,
+        /// Black-level offset, normalised.
+        offset: f64,
+    },
+    /// Cast shadows of this light (a render-time effect).
+    Shadows {
+        /// Azimuth toward the light, degrees from +x toward +y.
+        azimuth_deg: f64,
+        /// Elevation of the light, degrees.
+        elevation_deg: f64,
+    },
+    /// Extra radial distortion added to the calibration's `k1`, `k2`.
+    Distortion {
+        /// Added to `k1`.
+        dk1: f64,
+        /// Added to `k2`.
+        dk2: f64,
+    },
+    /// A fixed offset between the calibrated and the true rig pose (the camera-to-rig
+    /// transform is off), in rig axes; every camera of the rig follows it (the validator's `sensor::Placement`).
+    /// On a lone camera the rig is the camera.
+    PoseBias {
+        /// Translation, metres, rig frame.
+        translation_m: [f64; 3],
+        /// Rotations about the rig x, y, z axes, degrees (applied x first, then y, then z).
+        rotation_deg: [f64; 3],
+    },
+    /// The entry's texture lacks the detail a ground Gaussian of this size removes: sample
+    /// renders add procedural detail of that spectrum (the validator's `sensor::detail`).
+    TextureLowpass {
+        /// Standard deviation, metres on the ground.
+        sigma_m: f64,
+    },
+}
 
 /// The plausible range of one effect parameter, and its neutral (no-effect) value.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -265,13 +334,14 @@ impl Effect {
         Effect::build(self.name(), &merged).unwrap_or(*self)
     }
 
-    /// Effect `name` with every parameter drawn uniformly from its plausible range.
-    pub fn sample<R: Rng>(name: &str, rng: &mut R) -> Option<Effect> {
+    /// Effect `name` with every parameter drawn from its plausible range by `uniform(min, max)`
+    /// (a uniform draw on the closed interval, e.g. `|a, b| rng.gen_range(a..=b)`).
+    pub fn sample(name: &str, mut uniform: impl FnMut(f64, f64) -> f64) -> Option<Effect> {
         let ranges = Effect::default_range(name)?;
         let mut draw = || -> BTreeMap<&str, f64> {
             ranges
                 .iter()
-                .map(|r| (r.name, rng.gen_range(r.min..=r.max)))
+                .map(|r| (r.name, uniform(r.min, r.max)))
                 .collect()
         };
         let mut values = draw();
@@ -293,7 +363,7 @@ impl Effect {
 
 #[cfg(test)]
 mod tests {
-    use rand::SeedableRng;
+    use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
     use super::*;
@@ -302,7 +372,8 @@ mod tests {
     fn drawn_distortions_displace_at_least_the_detection_limit_and_stay_in_range() {
         for seed in 0..200 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let Some(Effect::Distortion { dk1, dk2 }) = Effect::sample("distortion", &mut rng)
+            let Some(Effect::Distortion { dk1, dk2 }) =
+                Effect::sample("distortion", |a, b| rng.gen_range(a..=b))
             else {
                 panic!("a distortion");
             };
@@ -320,7 +391,8 @@ mod tests {
             let mut redrawn = 0;
             for seed in 0..300 {
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
-                let e = Effect::sample(name, &mut rng).expect("a catalogue effect");
+                let e =
+                    Effect::sample(name, |a, b| rng.gen_range(a..=b)).expect("a catalogue effect");
                 assert!(level_change_dn(&e).expect("a level change") >= MIN_LEVEL_CHANGE_DN);
                 let ranges = Effect::default_range(name).expect("a range");
                 let params = e.params();

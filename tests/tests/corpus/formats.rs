@@ -1,8 +1,6 @@
 //! The E57, LAS and VRML writers round-trip through independent readers (the `e57` and `las`
 //! crates' readers; the VRML structure counted by hand).
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-
 use regolith_corpus::instruments::{e57 as e57w, las as lasw};
 
 fn sample() -> (Vec<[f64; 3]>, Vec<f32>) {
@@ -75,7 +73,13 @@ fn vrml_mesh_counts_match_the_ply_twin() {
         captures: None,
         hidden: vec![],
     };
-    regolith_corpus::generate(&opts, dir.path(), &|_, _| {}).unwrap();
+    regolith_corpus::generate(
+        &opts,
+        dir.path(),
+        &regolith_model_captures::ModelCaptures,
+        &|_, _| {},
+    )
+    .unwrap();
     let wrl = std::fs::read_to_string(dir.path().join("sfm/mesh.wrl")).unwrap();
     assert!(wrl.starts_with("#VRML V2.0 utf8\n"));
     let section = |start: &str| -> Vec<&str> {

@@ -1,11 +1,10 @@
 //! Byte-identical output per seed on any thread count, and seeds matter.
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use regolith_corpus::{generate, GenerateOptions, HiddenSpec, Preset};
+use regolith_model_captures::ModelCaptures;
 
 fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     let mut out = BTreeMap::new();
@@ -48,7 +47,7 @@ fn run_with(threads: usize, seed: u64, captures: Option<usize>) -> BTreeMap<Stri
         .build()
         .unwrap();
     let summary = pool
-        .install(|| generate(&opts, dir.path(), &|_, _| {}))
+        .install(|| generate(&opts, dir.path(), &ModelCaptures, &|_, _| {}))
         .unwrap();
     let got = files(dir.path());
     assert_eq!(

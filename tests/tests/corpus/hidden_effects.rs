@@ -1,9 +1,7 @@
 //! Each hidden effect changes the "real" data the way its parameter says, compared with the
 //! plain campaign of the same seed (same terrain, poses, light and noise draws).
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-
-mod common;
+use super::common;
 
 use std::path::Path;
 
@@ -11,7 +9,7 @@ use common::*;
 use regolith_corpus::instruments::riegl::marker_visible;
 use regolith_corpus::terrain::TrueMarker;
 use regolith_validator::gap::markers::sight;
-use regolith_validator::render::{HeightfieldTracer, Light};
+use regolith_validator::render::Light;
 use regolith_validator::sensor::image::vignetting_factor;
 
 fn frame(dir: &Path, cap: usize, side: &str, k: usize) -> (usize, usize, Vec<f32>) {
@@ -227,7 +225,7 @@ fn default_shadows_draw_a_low_light_and_move_the_lab_light_there() {
 /// Lambertian sphere under the true light): within half a pixel of the true projection of its
 /// centre, and for geometric effects away from where the calibrated (nominal) model puts it.
 fn check_markers(dir: &Path, nominal_pose: bool) -> (usize, usize) {
-    let tracer = HeightfieldTracer::new(&height_grid(dir));
+    let tracer = regolith_corpus::terrain::raycast::TerrainCaster::new(&height_grid(dir));
     let markers: Vec<TrueMarker> = json(dir, "truth/markers.json")
         .as_array()
         .unwrap()

@@ -1,8 +1,6 @@
 //! Self-checks of a generated mini campaign against its own truth (issue "Done when").
 
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
-
-mod common;
+use super::common;
 
 use common::*;
 use regolith_validator::render::HeightfieldTracer;
