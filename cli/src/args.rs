@@ -269,7 +269,7 @@ pub enum CorpusAction {
         #[arg(long)]
         no_render: bool,
         /// Samples per canvas pixel of `--renderer mitsuba`.
-        #[arg(long, value_name = "N", default_value_t = 64,
+        #[arg(long, value_name = "N", default_value_t = 128,
               value_parser = clap::value_parser!(u32).range(1..=65536))]
         spp: u32,
         /// Also write malformed variants of every input kind into this folder.

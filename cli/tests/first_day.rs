@@ -593,6 +593,34 @@ fn first_day_mistakes_name_the_file_and_the_fix() {
         .unchanged(&db)
         .unchanged(&full),
     );
+    // A physically rendered campaign whose renders are not in the cache, renderer forbidden.
+    let empty_cache = t.join("no-renders");
+    std::fs::create_dir_all(&empty_cache).unwrap();
+    let camp = t.join("new-campaign");
+    rows.push(
+        row(
+            "corpus generate with renders missing and --no-render",
+            &[
+                "corpus",
+                "generate",
+                "--seed",
+                "301",
+                "--renders",
+                s(&empty_cache),
+                "--no-render",
+                "--out",
+                s(&camp),
+            ],
+            &[
+                "loc01_left",
+                "no-renders",
+                "tools/render/install.sh",
+                "--renderer mitsuba",
+            ],
+        )
+        .absent(&camp)
+        .unchanged(&empty_cache),
+    );
 
     let mut failures = Vec::new();
     for r in &rows {

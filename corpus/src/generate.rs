@@ -99,7 +99,9 @@ pub fn generate(
     };
     let terrain = Terrain::build(&cfg, cell, seed);
     let tracer = TerrainCaster::new(&terrain.height);
+    let world = renderer.world();
     let texture_albedo = hidden.albedo(&terrain.albedo);
+    let laser_albedo = hidden.albedo(&world.laser_albedo(&terrain, &terrain.albedo));
     lap("terrain", &mut times);
 
     let scans = write_scans(
@@ -107,7 +109,8 @@ pub fn generate(
         opts,
         &terrain,
         &tracer,
-        &texture_albedo,
+        &laser_albedo,
+        world.laser.incidence_exponent,
         &mut sink,
         progress,
     )?;
@@ -181,6 +184,7 @@ pub fn generate(
         &cfg,
         &terrain,
         &texture_albedo,
+        &world,
         seed,
         &mut stage_rng(seed, "sfm"),
     );
@@ -215,6 +219,7 @@ pub fn generate(
     sink.write("README.md", campaign::README.as_bytes())?;
     let hidden_truth = truth::HiddenTruth::new(&hidden, &effects::real_model(&hidden));
     sink.write_json("truth/renderer.json", &renderer.info())?;
+    sink.write_json("truth/lab.json", &world)?;
     let cams = truth::CamerasTruth::new(&head, &hidden, &texture_cam);
     truth::write_all(
         &mut sink,
@@ -238,18 +243,21 @@ pub fn generate(
     })
 }
 
+#[allow(clippy::too_many_arguments)]
 fn write_scans(
     cfg: &PresetConfig,
     opts: &GenerateOptions,
     terrain: &Terrain,
     tracer: &TerrainCaster,
-    texture_albedo: &AlbedoGrid,
+    laser_albedo: &AlbedoGrid,
+    incidence_exponent: f64,
     sink: &mut Sink,
     progress: &dyn Fn(&str, f64),
 ) -> Result<Vec<ScanTruth>, CorpusError> {
     let setup = riegl::ScanSetup {
         tracer,
-        albedo: texture_albedo,
+        albedo: laser_albedo,
+        incidence_exponent,
         markers: &terrain.markers,
         bed_centre: [0.5 * cfg.extent_m[0], 0.5 * cfg.extent_m[1]],
         step_deg: if opts.full {

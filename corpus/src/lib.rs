@@ -34,6 +34,7 @@ pub mod effects;
 mod error;
 mod generate;
 pub mod instruments;
+pub mod lab;
 pub mod presets;
 pub mod seeding;
 pub mod sink;

@@ -65,10 +65,29 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         }
     };
     let progress = Progress::new();
+    let existed = out.exists();
     let summary = generate(&opts, out, renderer.as_ref(), &|stage, f| {
         progress.report(stage, f)
-    })
-    .with_context(|| format!("generating into {}", out.display()))?;
+    });
+    let summary = match summary {
+        Ok(s) => s,
+        Err(e) => {
+            // The folder was absent or empty (the generator refuses others): leave it so.
+            if !existed {
+                let _ = std::fs::remove_dir_all(out);
+            } else if let Ok(rd) = std::fs::read_dir(out) {
+                for entry in rd.flatten() {
+                    let p = entry.path();
+                    let _ = if p.is_dir() {
+                        std::fs::remove_dir_all(&p)
+                    } else {
+                        std::fs::remove_file(&p)
+                    };
+                }
+            }
+            return Err(e).with_context(|| format!("generating into {}", out.display()));
+        }
+    };
     progress.finish();
     let bad = match bad_inputs {
         Some(dir) => Some(regolith_corpus::write_bad_inputs(dir)?),

@@ -5,8 +5,8 @@
 //! Making them with the validator's own sensor model would be the *inverse crime*: a model
 //! fitted to data it generated itself finds its own assumptions, not the camera's. So this
 //! module is written from the physics alone and shares no code with `regolith-validator`; only
-//! the *semantics* of the hidden effects (the effect registry in `docs/gap.md`) are shared, as
-//! they must be for the gap workflow to name them.
+//! the *semantics* of the hidden effects (`regolith_format::effects` and
+//! `format-spec/registry.md`) are shared, as they must be for the gap workflow to name them.
 //!
 //! **Input.** A physically based renderer (Mitsuba) draws a linear radiance image from an
 //! ideal pinhole camera ([`PinholeImage`]) covering the real camera's field with a margin and
@@ -270,7 +270,7 @@ impl CameraPhysics {
 }
 
 /// Catalogue effects hidden in this camera (`None` = absent), with the effect registry's
-/// semantics (`docs/gap.md`).
+/// semantics (`format-spec/registry.md`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HiddenOptics {
     /// `vignetting.strength`: cos⁴-law falloff, corners at `1 − strength` of the centre.

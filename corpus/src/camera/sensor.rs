@@ -2,7 +2,7 @@
 //! level, read noise, the response curve and 8-bit quantisation (steps 4–7).
 //!
 //! Randomness is drawn per row from `ChaCha8Rng`s seeded by
-//! [`item_rng`](crate::seeding::item_rng)`(seed, stage, row)`, so the bytes never depend on the
+//! [`item_rng`]`(seed, stage, row)`, so the bytes never depend on the
 //! thread count: the fixed patterns use `fixed_seed` (stages `camera.prnu`, `camera.dsnu`,
 //! `camera.column-fpn`), the temporal noise `frame_seed` (stage `camera.temporal`).
 

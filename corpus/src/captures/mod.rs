@@ -84,4 +84,9 @@ pub trait CaptureRenderer: Sync {
 
     /// What made them (called after [`CaptureRenderer::frames`]).
     fn info(&self) -> RendererInfo;
+
+    /// The nuisances of the world these frames belong to ([`crate::lab`]).
+    fn world(&self) -> crate::lab::World {
+        crate::lab::World::IDEAL
+    }
 }

@@ -16,7 +16,7 @@
 //!
 //! **The render cache.** A render depends on the scene (terrain, albedo, markers, room, lamp),
 //! the shot (canvas intrinsics, pose) and the sample count. Each render is stored as `<key>.png`
-//! (16-bit, [`CACHE_STEPS_PER_UNIT`]) under the cache folder, `key` = SHA-256 of all of it,
+//! (8-bit square-root codes, [`cache_code`]) under the cache folder, `key` = SHA-256 of all of it,
 //! beside `<key>.json` (renderer, version, variant, seconds). A campaign whose renders are all in
 //! the cache needs no renderer: the repository keeps the renders of its reference campaigns
 //! (`corpus/renders/`), so CI regenerates those campaigns without Mitsuba. Image effects act
@@ -77,16 +77,16 @@ pub struct PhysicalOptions {
 }
 
 impl PhysicalOptions {
-    /// Defaults: 64 samples per canvas pixel at 2× oversampling (256 per real pixel: render
-    /// noise ≈ 0.4 % of the signal, under the sensor's shot noise of ≈ 1 % at mid-grey),
-    /// the NavCam's physics, `python3`.
+    /// Defaults: a canvas at the real pixel pitch, 256 samples per pixel (see
+    /// `corpus/renders/README.md` for the measured render noise against the sensor's), the
+    /// NavCam's physics, `python3`.
     pub fn new(renders: PathBuf, driver: Option<PathBuf>) -> PhysicalOptions {
         PhysicalOptions {
             renders,
             driver,
             python: PathBuf::from("python3"),
-            spp: 64,
-            oversample: 2,
+            spp: 128,
+            oversample: 1,
             physics: CameraPhysics::NAVCAM,
         }
     }
@@ -220,6 +220,10 @@ impl CaptureRenderer for PhysicalCaptures {
             *u = used;
         }
         Ok(out)
+    }
+
+    fn world(&self) -> crate::lab::World {
+        crate::lab::World::LAB
     }
 
     fn info(&self) -> RendererInfo {
@@ -367,18 +371,28 @@ fn canvas_shot(shot: &Shot, oversample: u32, seed: u64) -> CanvasShot {
     widest.distortion.k1 += WIDEST_DK[0];
     widest.distortion.k2 += WIDEST_DK[1];
     let spec = camera::pinhole_canvas(&widest, oversample, PSF_MARGIN_PX);
+    // Renderers draw square pixels: the finer focal length on both axes, the canvas stretched
+    // to cover the same field.
+    let f = spec.fx.max(spec.fy);
+    let stretch = |n: usize, c: f64, fa: f64| {
+        let k = f / fa;
+        ((((n.max(1) - 1) as f64) * k).ceil() as usize + 1, c * k)
+    };
+    let (width, cx) = stretch(spec.width, spec.cx, spec.fx);
+    let (height, cy) = stretch(spec.height, spec.cy, spec.fy);
     let r = shot.ground_from_camera.rotation_matrix();
     let t = shot.ground_from_camera.translation_m;
     let row = |i: usize| [r[i][0], r[i][1], r[i][2], t[i]];
     CanvasShot {
         name: shot.name.clone(),
-        seed: stage_hash(seed, "render", shot.camera_index as u64) % 1_000_000_007,
-        width: spec.width,
-        height: spec.height,
-        fx: spec.fx,
-        fy: spec.fy,
-        cx: spec.cx,
-        cy: spec.cy,
+        // Every shot its own sample stream, so no two renders share a noise pattern.
+        seed: stage_hash(seed, &format!("render.{}", shot.name), 0) % 1_000_000_007,
+        width,
+        height,
+        fx: f,
+        fy: f,
+        cx,
+        cy,
         ground_from_camera: [row(0), row(1), row(2), [0.0, 0.0, 0.0, 1.0]],
     }
 }
@@ -672,32 +686,37 @@ fn read_y(path: &Path) -> Result<Vec<f32>, CorpusError> {
     })
 }
 
-/// Radiance steps per unit in a cached render: 1/1024 of full scale is 0.25 DN, under a tenth
-/// of the sensor's own noise at any level the camera records, and the steps stay coarse enough
-/// that a noisy render compresses to ~5 bits a pixel.
-pub const CACHE_STEPS_PER_UNIT: f64 = 1024.0;
+/// Radiance a cached render's code 255 stands for (510 DN at unit exposure).
+pub const CACHE_FULL_SCALE: f64 = 2.0;
 
-/// Stores a render as a 16-bit grey PNG, `value = round(radiance · CACHE_STEPS_PER_UNIT)`.
+/// A radiance as a cached render's code: `round(255 · sqrt(radiance / CACHE_FULL_SCALE))`.
+/// The square root makes the step grow like photon noise: 0.6 DN at 10 DN, 1.4 DN at 60 DN,
+/// 2.5 DN at 200 DN, so the rounding's σ (step/√12) stays near a fifth of the sensor's shot
+/// noise at every level, and a render costs ~2.4 bits a pixel less than linear 16-bit steps.
+pub fn cache_code(radiance: f64) -> u8 {
+    (255.0 * (radiance.max(0.0) / CACHE_FULL_SCALE).sqrt())
+        .round()
+        .clamp(0.0, 255.0) as u8
+}
+
+/// The radiance a cached render's code stands for (the inverse of [`cache_code`]).
+pub fn cache_radiance(code: u8) -> f64 {
+    CACHE_FULL_SCALE * (f64::from(code) / 255.0).powi(2)
+}
+
+/// Stores a render as an 8-bit grey PNG of [`cache_code`]s.
 fn write_cached(path: &Path, width: usize, height: usize, y: &[f32]) -> Result<(), CorpusError> {
-    let bytes: Vec<u8> = y
-        .iter()
-        .flat_map(|&v| {
-            let q = (f64::from(v) * CACHE_STEPS_PER_UNIT)
-                .round()
-                .clamp(0.0, 65535.0) as u16;
-            q.to_be_bytes()
-        })
-        .collect();
+    let codes: Vec<u8> = y.iter().map(|&v| cache_code(f64::from(v))).collect();
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, width as u32, height as u32);
         enc.set_color(png::ColorType::Grayscale);
-        enc.set_depth(png::BitDepth::Sixteen);
+        enc.set_depth(png::BitDepth::Eight);
         enc.set_compression(png::Compression::Best);
         let mut w = enc
             .write_header()
             .map_err(CorpusError::encode("PNG", path))?;
-        w.write_image_data(&bytes)
+        w.write_image_data(&codes)
             .map_err(CorpusError::encode("PNG", path))?;
     }
     std::fs::write(path, out).map_err(CorpusError::io("a cached render", path))
@@ -707,7 +726,7 @@ fn write_cached(path: &Path, width: usize, height: usize, y: &[f32]) -> Result<(
 fn read_cached(path: &Path) -> Result<(usize, usize, Vec<f32>), CorpusError> {
     let bad = |m: String| CorpusError::Option {
         option: "--renders",
-        expected: format!("a 16-bit grey PNG render at {}", path.display()),
+        expected: format!("an 8-bit grey PNG render at {}", path.display()),
         found: m,
     };
     let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
@@ -718,14 +737,14 @@ fn read_cached(path: &Path) -> Result<(usize, usize, Vec<f32>), CorpusError> {
     let info = reader
         .next_frame(&mut buf)
         .map_err(|e| bad(e.to_string()))?;
-    if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Sixteen {
+    if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Eight {
         return Err(bad(format!("{:?} {:?}", info.color_type, info.bit_depth)));
     }
     let values = buf
         .get(..info.buffer_size())
         .unwrap_or_default()
-        .chunks_exact(2)
-        .map(|b| (f64::from(u16::from_be_bytes([b[0], b[1]])) / CACHE_STEPS_PER_UNIT) as f32)
+        .iter()
+        .map(|&c| cache_radiance(c) as f32)
         .collect();
     Ok((info.width as usize, info.height as usize, values))
 }

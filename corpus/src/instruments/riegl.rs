@@ -57,6 +57,8 @@ pub struct ScanSetup<'a> {
     pub tracer: &'a TerrainCaster,
     /// Albedo the reflectance is computed from (true, or low-passed when hidden).
     pub albedo: &'a AlbedoGrid,
+    /// The return falls as `cos(incidence)^incidence_exponent` (1: Lambert).
+    pub incidence_exponent: f64,
     /// Markers.
     pub markers: &'a [TrueMarker],
     /// Centre of the bed (x, y) the stations point at.
@@ -133,7 +135,10 @@ pub fn simulate(setup: &ScanSetup<'_>, spec: &ScannerSpec) -> Scan {
                 let cos_i =
                     -(dg[0] * hit.normal[0] + dg[1] * hit.normal[1] + dg[2] * hit.normal[2]);
                 let a = shape.bilinear(&setup.albedo.value, hit.point[0], hit.point[1]);
-                let db = 10.0 * (a * cos_i.max(0.02)).max(1e-3).log10()
+                let db = 10.0
+                    * (a * cos_i.max(0.02).powf(setup.incidence_exponent))
+                        .max(1e-3)
+                        .log10()
                     + REFLECTANCE_RANGE_SLOPE_DB_PER_M * hit.t
                     + refl_noise.map_or(0.0, |n| n.sample(&mut rng));
                 pts.push([d[0] * range, d[1] * range, d[2] * range]);

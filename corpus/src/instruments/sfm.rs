@@ -68,6 +68,7 @@ pub fn reconstruct(
     cfg: &PresetConfig,
     terrain: &Terrain,
     albedo: &AlbedoGrid,
+    world: &crate::lab::World,
     seed: u64,
     rng: &mut ChaCha8Rng,
 ) -> SfmMesh {
@@ -113,7 +114,7 @@ pub fn reconstruct(
                     let n = Normal::new(0.0, sigma).map_or(0.0, |d| d.sample(&mut rng));
                     let z = shape.bilinear(&smooth, x, y) + n;
                     let a = ashape.bilinear(&colour, x, y);
-                    let grey = (255.0 * a).round().clamp(0.0, 255.0) as u8;
+                    let grey = world.photo_dn(a);
                     (similarity.apply([x, y, z]), [grey; 3])
                 })
                 .collect()

@@ -36,6 +36,8 @@ pub struct Terrain {
     pub height: HeightGrid,
     /// True albedo (same geometry as `height`).
     pub albedo: AlbedoGrid,
+    /// Material id per cell (`synth::material`), same geometry.
+    pub material: Vec<u8>,
     /// Marker balls.
     pub markers: Vec<TrueMarker>,
 }
@@ -46,6 +48,7 @@ impl Terrain {
         let shape = GridShape::covering(cfg.extent_m, cell_m);
         let built = synth::relief(cfg, &shape, seed);
         let albedo = materials::albedo(&shape, &built.material, seed);
+        let material = built.material;
         let height = HeightGrid {
             origin_m: shape.origin_m,
             cell_m,
@@ -56,6 +59,7 @@ impl Terrain {
         Terrain {
             height,
             albedo,
+            material,
             markers: built.markers,
         }
     }

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Renders (or checks) the reference renders of corpus/renders/: the independently rendered
+# campaigns the tests regenerate without a renderer.
+#
+#   bash tools/render/reference.sh [REGOLITH_BINARY]
+#
+# For each reference seed it generates the mini campaigns with nothing hidden, with each
+# catalogue effect and with the three pairs, all with --renderer mitsuba --renders corpus/renders.
+# Renders already in the cache are reused (image effects act after the render, so only the plain
+# scene, a moved lamp (shadows) and a moved camera (pose-bias) are rendered); missing ones are
+# rendered with Mitsuba (install it with tools/render/install.sh; the script stops with the
+# generator's message when Mitsuba is not there). The campaigns go to a temporary folder.
+set -euo pipefail
+
+here=$(cd "$(dirname "$0")/../.." && pwd)
+bin=${1:-$here/target/release/regolith}
+renders=$here/corpus/renders
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+
+# The seeds, cases and sample count are also those of tests/tests/corpus/physical.rs.
+seeds="301 302"
+spp=${SPP:-128}
+cases="none vignetting blur noise gamma exposure shadows distortion pose-bias texture-lowpass
+vignetting,exposure blur,distortion shadows,gamma"
+
+if ! python3 -c "import mitsuba" 2>/dev/null; then
+    echo "note: mitsuba is not installed (tools/render/install.sh); only cached renders can be used" >&2
+fi
+for seed in $seeds; do
+    for case in $cases; do
+        hidden=()
+        [ "$case" = none ] || hidden=(--hidden-effect "$case")
+        echo "== seed $seed: $case" >&2
+        "$bin" corpus generate --preset mini --seed "$seed" "${hidden[@]}" \
+            --renderer mitsuba --renders "$renders" --spp "$spp" \
+            --out "$out/$seed-${case//,/+}" -q
+    done
+done
+du -sh "$renders"
+ls "$renders"/*.png | wc -l
