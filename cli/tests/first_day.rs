@@ -615,7 +615,7 @@ fn first_day_mistakes_name_the_file_and_the_fix() {
                 "loc01_left",
                 "no-renders",
                 "tools/render/install.sh",
-                "--renderer mitsuba",
+                "without --no-render",
             ],
         )
         .absent(&camp)

@@ -266,7 +266,7 @@ impl PhysicalCaptures {
             return Err(CorpusError::Option {
                 option: "--renders",
                 expected: format!(
-                    "renders of shots {} in {} (run with a renderer: install Mitsuba with tools/render/install.sh and pass --renderer mitsuba)",
+                    "renders of shots {} in {} (to make them, install Mitsuba with tools/render/install.sh and run without --no-render; a binary outside its source tree also needs REGOLITH_MITSUBA_DRIVER=<path of tools/render/mitsuba_captures.py>)",
                     names.join(", "),
                     self.opts.renders.display()
                 ),
