@@ -8,8 +8,9 @@
 # catalogue effect and with the three pairs, all with --renderer mitsuba --renders corpus/renders.
 # Renders already in the cache are reused (image effects act after the render, so only the plain
 # scene, a moved lamp (shadows) and a moved camera (pose-bias) are rendered); missing ones are
-# rendered with Mitsuba (install it with tools/render/install.sh; the script stops with the
-# generator's message when Mitsuba is not there). The campaigns go to a temporary folder.
+# rendered with Mitsuba, which the script installs (tools/render/install.sh) if it is absent; if
+# it cannot, it says so and stops at the first missing render with the generator's list of the
+# missing shots. The campaigns go to a temporary folder.
 set -euo pipefail
 
 here=$(cd "$(dirname "$0")/../.." && pwd)
@@ -25,7 +26,11 @@ cases="none vignetting blur noise gamma exposure shadows distortion pose-bias te
 vignetting,exposure blur,distortion shadows,gamma"
 
 if ! python3 -c "import mitsuba" 2>/dev/null; then
-    echo "note: mitsuba is not installed (tools/render/install.sh); only cached renders can be used" >&2
+    echo "mitsuba is not installed: running tools/render/install.sh" >&2
+    if ! bash "$here/tools/render/install.sh"; then
+        echo "cannot install Mitsuba here: only the renders already in $renders can be used;" >&2
+        echo "a missing one stops the script with the generator's list of missing shots" >&2
+    fi
 fi
 for seed in $seeds; do
     for case in $cases; do
