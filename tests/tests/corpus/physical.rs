@@ -746,3 +746,51 @@ fn a_fresh_render_reproduces_the_checked_in_one_within_its_noise() {
     );
     assert!(rms < 3.0, "rms difference {rms:.2} DN");
 }
+
+#[test]
+fn a_physical_campaign_is_the_same_bytes_on_one_and_two_threads() {
+    let run = |threads: usize| -> BTreeMap<String, Vec<u8>> {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = GenerateOptions {
+            preset: Preset::Mini,
+            seed: SEEDS[1],
+            full: false,
+            captures: None,
+            hidden: effects::parse_list("vignetting,noise").unwrap(),
+        };
+        let renderer = PhysicalCaptures::new(PhysicalOptions::new(renders(), None));
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| generate(&opts, dir.path(), &renderer, &|_, _| {}))
+            .unwrap();
+        let mut out = BTreeMap::new();
+        let mut stack = vec![dir.path().to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    let rel = p
+                        .strip_prefix(dir.path())
+                        .unwrap()
+                        .to_string_lossy()
+                        .into_owned();
+                    out.insert(rel, std::fs::read(&p).unwrap());
+                }
+            }
+        }
+        out
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(
+        one.keys().collect::<Vec<_>>(),
+        two.keys().collect::<Vec<_>>()
+    );
+    for (k, v) in &one {
+        assert!(two[k] == *v, "{k} differs between 1 and 2 threads");
+    }
+    assert!(one.keys().any(|k| k.starts_with("captures/")));
+}
