@@ -884,6 +884,8 @@ def main(argv=None):
     ap.add_argument("--threads", type=int, help="worker threads, at least 2 (default: all cores)")
     ap.add_argument("--only", metavar="SHOT_NAME", help="render only this shot")
     ap.add_argument("--self-test", action="store_true", help="check camera, radiometry and EXR output, then exit")
+    ap.add_argument("--fast-variant", action="store_true",
+                    help="exit 0 if an LLVM variant works here (renders take a minute, not an hour), else 4")
     args = ap.parse_args(argv)
     try:
         if args.spp <= 0:
@@ -891,6 +893,14 @@ def main(argv=None):
         if args.threads is not None and args.threads < 2:
             raise SceneError("--threads must be at least 2: Mitsuba 3.9.1 deadlocks reading or writing EXR "
                              "with a one-thread pool")
+        if args.fast_variant:
+            set_llvm_library_path()
+            try:
+                import mitsuba as mi
+            except ImportError:
+                return 3
+            ok = any(v in mi.variants() and variant_works(v) for v in PREFERRED_VARIANTS if v.startswith("llvm"))
+            return 0 if ok else 4
         if args.self_test:
             return self_test(args)
         if not args.scene or not args.out_dir:
