@@ -346,15 +346,36 @@ pub fn expose(
     fixed_seed: u64,
     frame_seed: u64,
 ) -> Vec<u8> {
+    expose_frames(pinhole, camera, physics, hidden, fixed_seed, &[frame_seed])
+        .pop()
+        .unwrap_or_default()
+}
+
+/// The frames [`expose`] makes for each of `frame_seeds`, with the optics (remap, vignetting,
+/// PSF) and the fixed pattern computed once: frames of one pose differ only in their temporal
+/// noise.
+pub fn expose_frames(
+    pinhole: &PinholeImage,
+    camera: &CameraModel,
+    physics: &CameraPhysics,
+    hidden: &HiddenOptics,
+    fixed_seed: u64,
+    frame_seeds: &[u64],
+) -> Vec<Vec<u8>> {
     let (w, h) = (camera.width as usize, camera.height as usize);
     let irr = irradiance(pinhole, camera, physics, hidden);
     let pattern = FixedPattern::new(physics, w, h, fixed_seed);
-    let rows: Vec<Vec<u8>> = (0..h)
-        .into_par_iter()
-        .map(|row| {
-            let line = irr.get(row * w..(row + 1) * w).unwrap_or(&[]);
-            sensor::sensor_row(line, row, &pattern, physics, hidden, frame_seed)
+    frame_seeds
+        .iter()
+        .map(|&frame_seed| {
+            let rows: Vec<Vec<u8>> = (0..h)
+                .into_par_iter()
+                .map(|row| {
+                    let line = irr.get(row * w..(row + 1) * w).unwrap_or(&[]);
+                    sensor::sensor_row(line, row, &pattern, physics, hidden, frame_seed)
+                })
+                .collect();
+            rows.concat()
         })
-        .collect();
-    rows.concat()
+        .collect()
 }

@@ -195,17 +195,17 @@ impl CaptureRenderer for PhysicalCaptures {
                 radiance,
             };
             let fixed = stage_hash(scene.seed, "camera.fixed-pattern", shot.camera_index as u64);
-            let frame = |k: u64| {
-                camera::expose(
-                    &pinhole,
-                    &shot.camera,
-                    &self.opts.physics,
-                    &hidden,
-                    fixed,
-                    shot.noise_seed.wrapping_add(k),
-                )
-            };
-            out.push([frame(0), frame(1)]);
+            let mut frames = camera::expose_frames(
+                &pinhole,
+                &shot.camera,
+                &self.opts.physics,
+                &hidden,
+                fixed,
+                &[shot.noise_seed, shot.noise_seed.wrapping_add(1)],
+            )
+            .into_iter();
+            let mut next = || frames.next().unwrap_or_default();
+            out.push([next(), next()]);
             let meta = std::fs::read(self.opts.renders.join(format!("{key}.json")))
                 .ok()
                 .and_then(|b| serde_json::from_slice(&b).ok())

@@ -1,29 +1,11 @@
 //! Byte-identical output per seed on any thread count, and seeds matter.
 
 use std::collections::BTreeMap;
-use std::path::Path;
 
 use regolith_corpus::{generate, GenerateOptions, HiddenSpec, Preset};
 use regolith_model_captures::ModelCaptures;
 
-fn files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                out.insert(
-                    p.strip_prefix(dir).unwrap().to_string_lossy().into_owned(),
-                    std::fs::read(&p).unwrap(),
-                );
-            }
-        }
-    }
-    out
-}
+use super::common::files;
 
 fn run(threads: usize, seed: u64) -> BTreeMap<String, Vec<u8>> {
     run_with(threads, seed, None)

@@ -14,7 +14,7 @@ use regolith_corpus::terrain::raycast::TerrainCaster;
 use regolith_corpus::{effects, generate, GenerateOptions, Preset};
 use regolith_format::camera_model::CameraModel;
 
-use super::common::{camera, grey, height_grid, json, pose};
+use super::common::{camera, files, grey, height_grid, json, pose};
 
 /// The reference seeds: disjoint from every seed the gap workflow's thresholds were set on.
 const SEEDS: [u64; 2] = [301, 302];
@@ -772,24 +772,7 @@ fn a_physical_campaign_is_the_same_bytes_on_one_and_two_threads() {
             .unwrap()
             .install(|| generate(&opts, dir.path(), &renderer, &|_, _| {}))
             .unwrap();
-        let mut out = BTreeMap::new();
-        let mut stack = vec![dir.path().to_path_buf()];
-        while let Some(d) = stack.pop() {
-            for e in std::fs::read_dir(&d).unwrap() {
-                let p = e.unwrap().path();
-                if p.is_dir() {
-                    stack.push(p);
-                } else {
-                    let rel = p
-                        .strip_prefix(dir.path())
-                        .unwrap()
-                        .to_string_lossy()
-                        .into_owned();
-                    out.insert(rel, std::fs::read(&p).unwrap());
-                }
-            }
-        }
-        out
+        files(dir.path())
     };
     let (one, two) = (run(1), run(2));
     assert_eq!(
