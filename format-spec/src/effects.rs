@@ -251,6 +251,74 @@ impl Effect {
         list.into_iter().collect()
     }
 
+    /// The effect's size in forms that need none of the catalogue's definitions, so a lab can
+    /// set them beside its own calibration: `corner_centre_ratio` (vignetting: corner radiance
+    /// over centre radiance), `edge_width_10_90_px` (blur: the 10–90 % rise of an edge, 2 ·
+    /// 1.2816 σ for a Gaussian), `displacement_px_at_0_7_radius` (distortion: the radial shift
+    /// the increment makes at 0.7 of the distance from the principal point to the farthest
+    /// corner, toward that corner; negative inward — needs `camera`), `dn_at_mid_grey`
+    /// (gamma: what an input of 127.5 DN becomes), `gain` and `offset_dn` (exposure),
+    /// `sigma_dn_at_100_dn` (noise: temporal standard deviation at 100 DN), `rotation_deg` and
+    /// `translation_mm` (pose-bias: magnitudes), `fwhm_mm` (texture-lowpass: the ground blur's
+    /// full width at half maximum). `shadows` is a light direction already.
+    pub fn plain_figures(
+        &self,
+        camera: Option<&crate::camera_model::CameraModel>,
+    ) -> BTreeMap<&'static str, f64> {
+        // 2·Φ⁻¹(0.9) and 2·sqrt(2·ln 2): a Gaussian's 10–90 % edge width and FWHM per σ.
+        const EDGE_10_90: f64 = 2.563_103_131_089_201;
+        const FWHM: f64 = 2.354_820_045_030_949;
+        let list: Vec<(&'static str, f64)> = match *self {
+            Effect::Vignetting { strength } => vec![("corner_centre_ratio", 1.0 - strength)],
+            Effect::Blur { sigma_px } => vec![("edge_width_10_90_px", EDGE_10_90 * sigma_px)],
+            Effect::Noise { gain, read_sigma } => vec![(
+                "sigma_dn_at_100_dn",
+                (gain * 100.0 + read_sigma * read_sigma).sqrt(),
+            )],
+            Effect::Gamma { gamma } => vec![("dn_at_mid_grey", 255.0 * 0.5f64.powf(1.0 / gamma))],
+            Effect::Exposure { gain, offset } => {
+                vec![("gain", gain), ("offset_dn", 255.0 * offset)]
+            }
+            Effect::Shadows { .. } => Vec::new(),
+            Effect::Distortion { dk1, dk2 } => camera
+                .map(|c| {
+                    // The farthest corner pixel centre, and the point at 0.7 of the way there.
+                    let (w, h) = (f64::from(c.width) - 1.0, f64::from(c.height) - 1.0);
+                    let (u, v) = [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)]
+                        .into_iter()
+                        .map(|(u, v)| (u - c.cx, v - c.cy))
+                        .fold((0.0, 0.0), |a: (f64, f64), b| {
+                            if b.0.hypot(b.1) > a.0.hypot(a.1) {
+                                b
+                            } else {
+                                a
+                            }
+                        });
+                    let (du, dv) = (0.7 * u, 0.7 * v);
+                    let (x, y) = (du / c.fx, dv / c.fy);
+                    let r2 = x * x + y * y;
+                    let scale = dk1 * r2 + dk2 * r2 * r2;
+                    vec![("displacement_px_at_0_7_radius", scale * du.hypot(dv))]
+                })
+                .unwrap_or_default(),
+            Effect::PoseBias {
+                translation_m: t,
+                rotation_deg: r,
+            } => vec![
+                (
+                    "rotation_deg",
+                    (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt(),
+                ),
+                (
+                    "translation_mm",
+                    1000.0 * (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt(),
+                ),
+            ],
+            Effect::TextureLowpass { sigma_m } => vec![("fwhm_mm", 1000.0 * FWHM * sigma_m)],
+        };
+        list.into_iter().collect()
+    }
+
     /// The plausible parameter ranges of effect `name`; `None` for an unknown name.
     pub fn default_range(name: &str) -> Option<&'static [ParamRange]> {
         Some(match name {
@@ -367,6 +435,48 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     use super::*;
+
+    #[test]
+    fn plain_figures_follow_their_definitions() {
+        let v = Effect::Vignetting { strength: 0.3 }.plain_figures(None);
+        assert!((v["corner_centre_ratio"] - 0.7).abs() < 1e-12);
+        // A Gaussian edge: Φ(1.2816) = 0.9, so 10–90 % spans 2.5631 σ.
+        let b = Effect::Blur { sigma_px: 2.0 }.plain_figures(None);
+        assert!((b["edge_width_10_90_px"] - 5.1262).abs() < 1e-3);
+        let g = Effect::Gamma { gamma: 1.0 }.plain_figures(None);
+        assert!((g["dn_at_mid_grey"] - 127.5).abs() < 1e-9);
+        let cam = crate::camera_model::CameraModel {
+            model: crate::camera_model::MODEL_ID.into(),
+            width: 101,
+            height: 101,
+            fx: 100.0,
+            fy: 100.0,
+            cx: 50.0,
+            cy: 50.0,
+            skew: 0.0,
+            distortion: Default::default(),
+        };
+        // Farthest corner at (50, 50) px from the centre; 0.7 of it is r = 0.7·√2·50 px, or
+        // 0.7·√2·0.5 normalised: dk1 = −0.1 moves it by −0.1·r_n²·r px.
+        let d = Effect::Distortion {
+            dk1: -0.1,
+            dk2: 0.0,
+        }
+        .plain_figures(Some(&cam));
+        let r_px = 0.7 * 50.0 * 2f64.sqrt();
+        let r_n = r_px / 100.0;
+        let want = -0.1 * r_n * r_n * r_px;
+        assert!(
+            (d["displacement_px_at_0_7_radius"] - want).abs() < 1e-9,
+            "{d:?}"
+        );
+        assert!(Effect::Distortion {
+            dk1: -0.1,
+            dk2: 0.0
+        }
+        .plain_figures(None)
+        .is_empty());
+    }
 
     #[test]
     fn drawn_distortions_displace_at_least_the_detection_limit_and_stay_in_range() {

@@ -9,7 +9,11 @@ real-vs-real ceiling per detector, with the chance part of the render's one-dire
 (`Thresholds::default`) are set between the good entries and the degraded one; the figures of
 the last calibration are quoted there.
 
-    python3 tools/calibrate/validate_thresholds.py --seeds 1,2,3 --out /tmp/calib [--bin target/release/regolith]
+    python3 tools/calibrate/validate_thresholds.py --seeds 311,312,313 --out /tmp/calib \
+        [--bin target/release/regolith] [--renderer mitsuba|model]
+
+Seeds 301 and 302 are the held-out test seeds of the independent captures (corpus/renders/):
+never calibrate on them.
 """
 import argparse
 import json
@@ -36,13 +40,21 @@ def main():
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--out", required=True, type=pathlib.Path)
     ap.add_argument("--bin", default="target/release/regolith")
+    ap.add_argument("--renders", default=None,
+                    help="render cache folder for Mitsuba (e.g. corpus/renders for seeds 301, 302)")
+    ap.add_argument("--renderer", default="mitsuba", choices=["mitsuba", "model"],
+                    help="who renders the captures: Mitsuba 3 (independent of the validator; "
+                         "default) or the validator's own forward model (the calibration before "
+                         "format 1.10; an inverse crime for the figures)")
     a = ap.parse_args()
     rows = []
     for seed in [int(s) for s in a.seeds.split(",")]:
         d = a.out / f"seed{seed}"
         camp, db = d / "campaign", d / "db"
         if not (db / "regolith.db").exists():
-            run([a.bin, "corpus", "generate", "--renderer", "model", "--preset", "mini", "--seed", str(seed), "--out", camp])
+            renders = ["--renders", a.renders] if a.renders else []
+            run([a.bin, "corpus", "generate", "--renderer", a.renderer, *renders, "--preset", "mini",
+                 "--seed", str(seed), "--out", camp])
             toml = (camp / "campaign.toml").read_text()
             toml = re.sub(r"raster_m = \[0\.02, 0\.01\]", "raster_m = [0.05, 0.02, 0.01]", toml, count=1)
             (camp / "campaign.toml").write_text(toml)

@@ -271,6 +271,7 @@ pub(crate) fn named(
         explained_fraction: share,
         stage: stage.to_string(),
         evidence,
+        plain: BTreeMap::new(),
         per_capture: Vec::new(),
     }
 }

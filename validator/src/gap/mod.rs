@@ -45,12 +45,11 @@
 //! context of `context`); the models and fits it uses live in the modules named for them
 //! ([`geometry`], [`photometry`], ...). What the workflow recovers on the corpus' campaigns and
 //! where it stops — measured, with the causes found and the remedies tried — is in
-//! [`findings`].
+//! `docs/gap-findings.md`.
 
 pub mod apply;
 pub mod blur;
 mod context;
-pub mod findings;
 pub mod geometry;
 pub mod lsq;
 pub mod markers;
@@ -144,6 +143,9 @@ pub struct Named {
     pub stage: String,
     /// What showed it.
     pub evidence: String,
+    /// The fitted effect in forms that need no catalogue definition, to compare with a lab's
+    /// own calibration (`Effect::plain_figures`, with the first view's camera).
+    pub plain: BTreeMap<String, f64>,
     /// The effect fitted on each capture location's views alone (geometry and photometry, two
     /// captures or more): an effect fixed to the camera comes out the same in every capture,
     /// within the entry's own error there; a pose or lighting error of one capture does not.
@@ -370,7 +372,7 @@ pub fn run_observed(
 /// campaign's true terrain (the corpus' heights and albedo) this separates what the workflow
 /// recovers from what the entry costs: on mini the geometric stage then recovers a pose bias
 /// within 0.03° and 0.3 mm per axis and a distortion's `dk1` within 3 %, where the laser entry
-/// leaves up to 0.5° along the pitch/height valley and 16 % (see [`findings`]).
+/// leaves up to 0.5° along the pitch/height valley and 16 % (see `docs/gap-findings.md`).
 pub fn run_on(
     view: &ReleaseView,
     geometry: &Geometry,
@@ -449,6 +451,16 @@ fn run_steps(
     } else {
         Vec::new()
     };
+    let camera = ctx.views.first().map(|v| &v.camera_model);
+    for n in &mut found {
+        if let Some(e) = model.effects.iter().find(|e| e.name() == n.effect) {
+            n.plain = e
+                .plain_figures(camera)
+                .into_iter()
+                .map(|(k, v)| (k.to_string(), v))
+                .collect();
+        }
+    }
     let headline = Figure::headline(&found.iter().map(|n| n.effect.as_str()).collect::<Vec<_>>());
     Ok(GapResult {
         images,
