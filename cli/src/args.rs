@@ -36,7 +36,8 @@ pub enum Command {
     Compile {
         /// The campaign folder (or its campaign.toml).
         campaign: PathBuf,
-        /// The database to write into (created if absent).
+        /// The database to write into (created if absent): a folder, or an object-store URL
+        /// (`s3://bucket/prefix`, `gs://…`, `az://…`; docs/object-storage.md).
         #[arg(long, required_unless_present = "check")]
         db: Option<PathBuf>,
         /// Release `name@version` (default: the campaign name @ 1.0.0).
@@ -52,7 +53,7 @@ pub enum Command {
     /// repeatability against the real images and writes a certificate per entry; exit 1 unless
     /// every entry passes.
     Validate {
-        /// The database folder.
+        /// The database folder (or object-store URL, e.g. `s3://bucket/terrain`).
         db: PathBuf,
         /// The release (default: latest).
         #[arg(long, default_value = "latest")]
@@ -72,8 +73,17 @@ pub enum Command {
         /// Also write an offline HTML report (index.html + PNG figures) into this folder:
         /// real, rendered and difference images, keypoint overlays, repeatability curves,
         /// keypoint counts and spectra per view, and a summary per entry.
-        #[arg(long, value_name = "DIR")]
+        #[arg(long, value_name = "DIR", conflicts_with_all = ["shard", "merge"])]
         report: Option<PathBuf>,
+        /// Compute only shard I of N (1 ≤ I ≤ N) of the (entry, view) units and store each
+        /// unit's result in the database (`units/` refs) instead of certificates; units
+        /// already stored are skipped. Run every shard (anywhere), then `--merge`.
+        #[arg(long, value_name = "I/N", conflicts_with = "merge")]
+        shard: Option<crate::commands::Shard>,
+        /// Combine the stored unit results of every shard into the certificates one process
+        /// would write (byte-identical); fails naming the missing units if a shard has not run.
+        #[arg(long)]
+        merge: bool,
     },
     /// Name the sensor effects that separate renders from the real images.
     ///
@@ -82,7 +92,7 @@ pub enum Command {
     /// texture-lowpass), fits them and shows the gap before/after; `--apply` writes the fitted
     /// sensor model into a child release.
     Gap {
-        /// The database folder.
+        /// The database folder (or object-store URL, e.g. `s3://bucket/terrain`).
         db: PathBuf,
         /// The release (default: latest).
         #[arg(long, default_value = "latest")]
@@ -112,7 +122,7 @@ pub enum Command {
     /// Writes the degraded copy into a child release; `validate` must fail it. For checking and
     /// calibrating the gate on your own campaign.
     Control {
-        /// The database folder.
+        /// The database folder (or object-store URL, e.g. `s3://bucket/terrain`).
         db: PathBuf,
         /// The release (default: latest).
         #[arg(long, default_value = "latest")]
@@ -130,7 +140,7 @@ pub enum Command {
     /// `regolith validate` first), or `--allow-uncertified` is given, which makes a child
     /// release recording `allow_uncertified: true` in its manifest and publishes that.
     Release {
-        /// The database folder.
+        /// The database folder (or object-store URL, e.g. `s3://bucket/terrain`).
         db: PathBuf,
         /// The release (`name@version`, ref or id).
         release: String,
@@ -149,12 +159,12 @@ pub enum Command {
     },
     /// Rehash every object of every release; exit 1 naming each corrupt or missing one.
     Verify {
-        /// The database folder.
+        /// The database folder (or object-store URL, e.g. `s3://bucket/terrain`).
         db: PathBuf,
     },
     /// Show a database's releases, a release's entries, or one entry.
     Inspect {
-        /// The database folder.
+        /// The database folder (or object-store URL, e.g. `s3://bucket/terrain`).
         db: PathBuf,
         /// A release: `name@version`, `latest`, or an id (prefix of at least 6 hex digits).
         release: Option<String>,
@@ -163,7 +173,7 @@ pub enum Command {
     },
     /// Write an entry as plain files with their metadata (never partially written).
     Export {
-        /// The database folder.
+        /// The database folder (or object-store URL, e.g. `s3://bucket/terrain`).
         db: PathBuf,
         /// The release.
         release: String,
@@ -177,9 +187,16 @@ pub enum Command {
         profile: Option<Profile>,
     },
     /// Remove objects no release references (holds the database's write lock).
+    ///
+    /// On an object store, where there is no lock, unreachable objects younger than
+    /// `--grace-seconds` are kept: they may belong to a release another writer is committing.
     Gc {
-        /// The database folder.
+        /// The database folder (or object-store URL).
         db: PathBuf,
+        /// Keep unreachable objects younger than this (default: 0 for a folder, which the
+        /// write lock protects; 3600 for an object store).
+        #[arg(long, value_name = "N")]
+        grace_seconds: Option<u64>,
     },
     /// Generate synthetic campaigns with ground truth and hidden effects.
     Corpus {

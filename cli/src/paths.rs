@@ -14,6 +14,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use regolith_reader::Location;
 
 /// `path` made absolute against the working directory (`.` and `..` components kept as typed,
 /// symlinks not resolved). An empty path is the working directory.
@@ -29,6 +30,17 @@ pub fn absolute(path: &Path) -> anyhow::Result<PathBuf> {
             path
         )
     })
+}
+
+/// A database argument: an object-store URL (`s3://bucket/prefix`, `gs://…`, `az://…`) as
+/// typed, or a path (including `file://PATH`) made [`absolute`]. Parsed once here, so every
+/// command that takes DB accepts both (docs/object-storage.md).
+pub fn db_location(arg: &Path) -> anyhow::Result<Location> {
+    match arg.to_str().map(Location::parse) {
+        Some(Location::Url(url)) => Ok(Location::Url(url)),
+        Some(Location::Local(path)) => Ok(Location::Local(absolute(&path)?)),
+        None => Ok(Location::Local(absolute(arg)?)),
+    }
 }
 
 /// Like [`absolute`], for an optional argument.
@@ -49,6 +61,27 @@ mod tests {
         assert_eq!(p, cwd.join("campaign.toml"));
         assert_eq!(p.parent().unwrap(), cwd);
         assert_eq!(absolute(Path::new("")).unwrap(), cwd);
+    }
+
+    #[test]
+    fn database_arguments_are_urls_or_paths() {
+        let cwd = std::env::current_dir().unwrap();
+        assert_eq!(
+            db_location(Path::new("s3://bucket/terrain/")).unwrap(),
+            Location::Url("s3://bucket/terrain".into())
+        );
+        assert_eq!(
+            db_location(Path::new("db")).unwrap(),
+            Location::Local(cwd.join("db"))
+        );
+        assert_eq!(
+            db_location(Path::new("file:///srv/db")).unwrap(),
+            Location::Local(PathBuf::from("/srv/db"))
+        );
+        assert_eq!(
+            db_location(Path::new("C:/db")).unwrap(),
+            Location::Local(cwd.join("C:/db"))
+        );
     }
 
     #[test]

@@ -561,7 +561,7 @@ fn first_day_mistakes_name_the_file_and_the_fix() {
             &[
                 "db-in-campaign is neither a regolith database nor empty",
                 "campaign.toml",
-                "a new database needs a folder of its own; give a new folder name",
+                "a new database needs a folder (or prefix) of its own; give a new name",
             ],
         )
         .unchanged(&c),

@@ -3,10 +3,11 @@
 //! Layout (SPEC.md §2): `regolith.db` marker, `objects/sha256/<2>/<62>` immutable objects
 //! (payloads and release manifests), `refs/<name>` mutable names holding a release id,
 //! `logs/refs.jsonl` the append-only ref log (the only place wall-clock time is kept).
+//! The same keys live in a folder or under an object-store prefix ([`crate::store`]).
 
 use std::collections::BTreeMap;
-use std::fs;
-use std::path::{Path, PathBuf};
+use std::ops::Range;
+use std::sync::Arc;
 
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
@@ -15,7 +16,8 @@ use regolith_format::manifest::{check_name, MANIFEST_MEDIA_TYPE};
 use regolith_format::{Entry, ObjectId, Release};
 
 use crate::error::{ReaderError, Result};
-use crate::object::{read_ref, read_verified, Site};
+use crate::object::{object_key, read_ref, read_verified, Site};
+use crate::store::{Location, Store};
 
 /// File name of the marker that makes a folder a database.
 pub const MARKER: &str = "regolith.db";
@@ -43,21 +45,31 @@ fn legacy_certificate_ref(release: &ObjectId, entry: &str) -> String {
     format!("{CERTIFICATES_PREFIX}{release}/{entry}")
 }
 
-/// Whether a ref names a plain object (a certificate) rather than a release.
+/// Prefix of validation-unit refs (`units/<unit key>`, format 1.10), which name the stored
+/// result of one (entry, view) of a sharded validation (SPEC.md §2).
+pub const UNITS_PREFIX: &str = "units/";
+
+/// The ref of the validation unit whose content key is `key` (SPEC.md §2, format 1.10).
+pub fn unit_ref(key: &ObjectId) -> String {
+    format!("{UNITS_PREFIX}{key}")
+}
+
+/// Whether a ref names a plain object (a certificate or a validation unit's result) rather
+/// than a release.
 pub fn is_object_ref(name: &str) -> bool {
-    name.starts_with(CERTIFICATES_PREFIX)
+    name.starts_with(CERTIFICATES_PREFIX) || name.starts_with(UNITS_PREFIX)
 }
 
 /// An open database (read-only handle; see [`crate::write::Writer`] for writing).
 #[derive(Debug, Clone)]
 pub struct Database {
-    root: PathBuf,
+    store: Arc<dyn Store>,
 }
 
 /// A loaded release: its id and verified manifest.
 #[derive(Debug, Clone)]
 pub struct ReleaseView {
-    root: PathBuf,
+    store: Arc<dyn Store>,
     /// The release id (hash of the manifest bytes).
     pub id: ObjectId,
     /// The manifest.
@@ -65,7 +77,9 @@ pub struct ReleaseView {
 }
 
 impl Database {
-    /// Opens the database at `path`, checking its marker.
+    /// Opens the database at `location`, checking its marker: a folder (`&Path`, `PathBuf`),
+    /// or a string, where `s3://bucket/prefix`, `gs://…` and `az://…` name an object-store
+    /// prefix (with the `object-store` feature) and `file://…` or anything else a folder.
     ///
     /// ```no_run
     /// let db = regolith_reader::Database::open("terrain.db")?;
@@ -74,36 +88,61 @@ impl Database {
     /// }
     /// # Ok::<(), regolith_reader::ReaderError>(())
     /// ```
-    pub fn open(path: impl AsRef<Path>) -> Result<Database> {
-        let root = path.as_ref().to_path_buf();
-        let marker = root.join(MARKER);
-        let not_db = |reason: String| ReaderError::NotADatabase {
-            path: root.clone(),
-            reason,
-        };
-        let bytes = fs::read(&marker).map_err(|_| not_db(why_not_a_database(&root)))?;
-        let v: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| {
-            not_db(format!(
-                "its `{MARKER}` marker is not the JSON a database writes ({e})"
-            ))
-        })?;
-        let schema = v.get("schema").and_then(|s| s.as_str()).unwrap_or_default();
-        regolith_format::manifest::check_schema(schema)
-            .map_err(ReaderError::format(marker.display().to_string()))?;
-        Ok(Database { root })
+    pub fn open(location: impl Into<Location>) -> Result<Database> {
+        let location = location.into();
+        let store = location.open_store()?;
+        Database::open_store(store)
     }
 
-    /// The database folder.
-    pub fn root(&self) -> &Path {
-        &self.root
+    /// Opens the database held by `store`, checking its marker.
+    pub fn open_store(store: Arc<dyn Store>) -> Result<Database> {
+        let not_db = |store: &dyn Store| ReaderError::NotADatabase {
+            location: store.location().clone(),
+            reason: store.why_not_a_database(),
+        };
+        let bytes = match store.get(MARKER) {
+            Ok(Some(b)) => b,
+            Ok(None) => return Err(not_db(&*store)),
+            Err(e @ (ReaderError::Store { .. } | ReaderError::Credentials { .. })) => {
+                return Err(e)
+            }
+            Err(_) => return Err(not_db(&*store)),
+        };
+        let v: serde_json::Value =
+            serde_json::from_slice(&bytes).map_err(|e| ReaderError::NotADatabase {
+                location: store.location().clone(),
+                reason: format!("its `{MARKER}` marker is not the JSON a database writes ({e})"),
+            })?;
+        let schema = v.get("schema").and_then(|s| s.as_str()).unwrap_or_default();
+        regolith_format::manifest::check_schema(schema)
+            .map_err(ReaderError::format(store.describe(MARKER)))?;
+        Ok(Database { store })
+    }
+
+    /// Where the database is (a folder or a URL).
+    pub fn location(&self) -> &Location {
+        self.store.location()
+    }
+
+    /// The storage the database lives in.
+    pub fn store(&self) -> &Arc<dyn Store> {
+        &self.store
     }
 
     /// Every ref and the release id it holds, sorted by name.
     pub fn refs(&self) -> Result<BTreeMap<String, ObjectId>> {
         let mut out = BTreeMap::new();
-        let dir = self.root.join("refs");
-        if dir.is_dir() {
-            walk_refs(&dir, "", &mut out)?;
+        for meta in self.store.list("refs/")? {
+            let Some(name) = meta.key.strip_prefix("refs/") else {
+                continue;
+            };
+            let Some(bytes) = self.store.get(&meta.key)? else {
+                continue; // removed since the listing
+            };
+            out.insert(
+                name.to_string(),
+                parse_ref(&bytes, &*self.store, &meta.key)?,
+            );
         }
         Ok(out)
     }
@@ -111,16 +150,11 @@ impl Database {
     /// Reads one ref, `None` if it does not exist.
     pub fn read_ref(&self, name: &str) -> Result<Option<ObjectId>> {
         check_name("ref name", name).map_err(ReaderError::format("ref"))?;
-        let path = self.root.join("refs").join(name);
-        match fs::read_to_string(&path) {
-            Ok(s) => Ok(Some(parse_ref(&s, &path)?)),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-            Err(e) => Err(ReaderError::Io {
-                op: "reading",
-                path,
-                source: e,
-            }),
-        }
+        let key = format!("refs/{name}");
+        self.store
+            .get(&key)?
+            .map(|b| parse_ref(&b, &*self.store, &key))
+            .transpose()
     }
 
     /// Named releases (`name@version`, id), sorted by label.
@@ -189,8 +223,7 @@ impl Database {
     /// Loads a release by any spec accepted by [`Database::resolve`].
     pub fn release(&self, spec: &str) -> Result<ReleaseView> {
         let id = self.resolve(spec)?;
-        if !crate::object::object_path(&self.root, &id).is_file()
-            && !self.refs()?.values().any(|r| *r == id)
+        if self.store.head(&object_key(&id))?.is_none() && !self.refs()?.values().any(|r| *r == id)
         {
             // A full id that names no stored release (a typo of one character, an id of
             // another database): say so, rather than "object missing", which means corruption.
@@ -205,22 +238,16 @@ impl Database {
         release: &ObjectId,
         entry: &str,
     ) -> Result<Option<serde_json::Value>> {
-        // A directory at either name holds refs of nested entries of the 1.1–1.2 layout.
-        let read = |name: &str| -> Result<Option<ObjectId>> {
-            if self.root.join("refs").join(name).is_dir() {
-                Ok(None)
-            } else {
-                self.read_ref(name)
-            }
-        };
-        let mut found = read(&certificate_ref(release, entry))?;
+        // A folder at either name (which reads as no ref) holds refs of nested entries of the
+        // 1.1–1.2 layout.
+        let mut found = self.read_ref(&certificate_ref(release, entry))?;
         if found.is_none() {
-            found = read(&legacy_certificate_ref(release, entry))?;
+            found = self.read_ref(&legacy_certificate_ref(release, entry))?;
         }
         let Some(id) = found else {
             return Ok(None);
         };
-        let bytes = read_verified(&self.root, &id, None, &Site::new(entry, "certificate"))?;
+        let bytes = read_verified(&*self.store, &id, None, &Site::new(entry, "certificate"))?;
         serde_json::from_slice(&bytes)
             .map(Some)
             .map_err(|e| ReaderError::Decode {
@@ -233,89 +260,28 @@ impl Database {
     /// Loads and verifies a release manifest by id.
     pub fn release_by_id(&self, id: &ObjectId) -> Result<ReleaseView> {
         let site = Site::new("<manifest>", MANIFEST_MEDIA_TYPE);
-        let bytes = read_verified(&self.root, id, None, &site)?;
+        let bytes = read_verified(&*self.store, id, None, &site)?;
         let manifest = Release::from_bytes(&bytes).map_err(ReaderError::format(format!(
             "release manifest {}",
             id.short()
         )))?;
         Ok(ReleaseView {
-            root: self.root.clone(),
+            store: self.store.clone(),
             id: *id,
             manifest,
         })
     }
 }
 
-/// Why `root` is not a database, for [`ReaderError::NotADatabase`]: what is there instead, and
-/// the database right below it when there is one (`out/demo` for `out/demo/db`).
-fn why_not_a_database(root: &Path) -> String {
-    match fs::metadata(root) {
-        Err(_) => return "no such folder".to_string(),
-        Ok(m) if !m.is_dir() => return "it is a file, not a folder".to_string(),
-        Ok(_) => {}
-    }
-    let Ok(rd) = fs::read_dir(root) else {
-        return "the folder cannot be read".to_string();
-    };
-    let mut children: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
-    if children.is_empty() {
-        return "the folder is empty".to_string();
-    }
-    children.sort();
-    let below: Vec<String> = children
-        .iter()
-        .filter(|c| c.join(MARKER).is_file())
-        .map(|c| c.display().to_string())
-        .collect();
-    if !below.is_empty() {
-        return match below.as_slice() {
-            [one] => {
-                format!("it has no `{MARKER}` marker, but the folder below it is one: give {one}")
-            }
-            _ => format!(
-                "it has no `{MARKER}` marker, but folders below it are: give one of {}",
-                below.join(", ")
-            ),
-        };
-    }
-    if root.join("campaign.toml").is_file() {
-        return "it is a campaign folder (it holds campaign.toml): compile it into a database \
-                with `regolith compile CAMPAIGN --db DB` and give DB"
-            .to_string();
-    }
-    format!("the folder has no `{MARKER}` marker file")
-}
-
-fn walk_refs(dir: &Path, prefix: &str, out: &mut BTreeMap<String, ObjectId>) -> Result<()> {
-    let rd = fs::read_dir(dir).map_err(ReaderError::io("listing", dir))?;
-    let mut names: Vec<_> = rd.filter_map(|e| e.ok()).map(|e| e.path()).collect();
-    names.sort();
-    for path in names {
-        let Some(name) = path
-            .file_name()
-            .and_then(|n| n.to_str())
-            .map(str::to_string)
-        else {
-            continue;
-        };
-        if name.starts_with('.') {
-            continue; // temp files of an interrupted ref update
-        }
-        let full = format!("{prefix}{name}");
-        if path.is_dir() {
-            walk_refs(&path, &format!("{full}/"), out)?;
-        } else {
-            let s = fs::read_to_string(&path).map_err(ReaderError::io("reading", &path))?;
-            out.insert(full, parse_ref(&s, &path)?);
-        }
-    }
-    Ok(())
-}
-
-fn parse_ref(s: &str, path: &Path) -> Result<ObjectId> {
-    s.trim()
+/// Parses a ref's value (a release or object id and a newline).
+pub(crate) fn parse_ref(bytes: &[u8], store: &dyn Store, key: &str) -> Result<ObjectId> {
+    String::from_utf8_lossy(bytes)
+        .trim()
         .parse()
-        .map_err(ReaderError::format(format!("ref file {}", path.display())))
+        .map_err(ReaderError::format(format!(
+            "ref file {}",
+            store.describe(key)
+        )))
 }
 
 impl ReleaseView {
@@ -360,7 +326,41 @@ impl ReleaseView {
             entry: entry.to_string(),
             role: role.to_string(),
         })?;
-        read_ref(&self.root, f, &Site::new(entry, role))
+        read_ref(&*self.store, f, &Site::new(entry, role))
+    }
+
+    /// A byte range of an entry's file, read without fetching the rest (a ranged GET on object
+    /// stores). The range is checked against the manifest's size, but the bytes are not hashed
+    /// — a hash covers the whole object: use [`ReleaseView::read_file`] (or `verify`) when the
+    /// bytes must be proven intact.
+    pub fn read_file_range(&self, entry: &str, role: &str, range: Range<u64>) -> Result<Vec<u8>> {
+        let e = self.entry(entry)?;
+        let f = e.file(role).ok_or_else(|| ReaderError::NoSuchRole {
+            entry: entry.to_string(),
+            role: role.to_string(),
+        })?;
+        if range.start > range.end || range.end > f.size {
+            return Err(ReaderError::Decode {
+                entry: entry.to_string(),
+                what: "byte range",
+                message: format!(
+                    "{}..{} is outside the {} bytes of role {role:?}",
+                    range.start, range.end, f.size
+                ),
+            });
+        }
+        if range.is_empty() {
+            return Ok(Vec::new());
+        }
+        let key = object_key(&f.object);
+        if self.store.head(&key)?.is_none() {
+            return Err(ReaderError::MissingObject {
+                object: f.object,
+                entry: entry.to_string(),
+                role: role.to_string(),
+            });
+        }
+        self.store.get_range(&key, range)
     }
 
     /// Decodes a JSON file of an entry.

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 use regolith_format::{FormatError, ObjectId};
 use thiserror::Error;
 
+use crate::store::Location;
+
 /// Errors reading or writing a database.
 #[derive(Debug, Error)]
 pub enum ReaderError {
@@ -24,32 +26,51 @@ pub enum ReaderError {
         /// The database folder.
         path: PathBuf,
     },
-    /// The folder is not a regolith database.
+    /// The folder (or object-store prefix) is not a regolith database.
     #[error(
-        "{} is not a regolith database: {reason}; a database is the folder `regolith compile \
-         CAMPAIGN --db DB` creates (compile a campaign into it first, or give the folder of an \
-         existing database)",
-        path.display()
+        "{location} is not a regolith database: {reason}; a database is the folder (or \
+         object-store prefix) `regolith compile CAMPAIGN --db DB` creates (compile a campaign \
+         into it first, or give the location of an existing database)"
     )]
     NotADatabase {
-        /// The folder.
-        path: PathBuf,
+        /// The folder or URL.
+        location: Location,
         /// What is there instead (no such folder, a file, no `regolith.db` marker...), with a
         /// hint when a database sits right below it.
         reason: String,
     },
     /// A new database was to be created in a folder that holds other files.
     #[error(
-        "{} is neither a regolith database nor empty (it holds {}): a new database needs a \
-         folder of its own; give a new folder name (it is created) or an empty folder",
-        path.display(),
+        "{location} is neither a regolith database nor empty (it holds {}): a new database \
+         needs a folder (or prefix) of its own; give a new name (it is created) or an empty one",
         found_files(found)
     )]
     NotEmpty {
-        /// The folder.
-        path: PathBuf,
+        /// The folder or URL.
+        location: Location,
         /// What is in it, sorted.
         found: Vec<String>,
+    },
+    /// An object-store operation failed (network, server, configuration).
+    #[error("{message} ({location})")]
+    Store {
+        /// The URL (with the key, when one is concerned).
+        location: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// The object store refused the credentials; nothing was written.
+    #[error(
+        "the object store refused the credentials for {location}: {message}; nothing was \
+         written. Check {hint} (docs/object-storage.md)"
+    )]
+    Credentials {
+        /// The URL (with the key, when one is concerned).
+        location: String,
+        /// The server's answer.
+        message: String,
+        /// The environment variables that hold the credentials for this kind of store.
+        hint: &'static str,
     },
     /// No release matches the given name, version, id or ref.
     #[error("no release matches {spec:?}; {}", known_releases(known))]

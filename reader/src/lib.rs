@@ -20,6 +20,10 @@
 //!
 //! The crate also holds the one writer ([`write::Writer`]) so the compiler, the validator and
 //! the gap workflow share the same crash-safe write path; it adds no dependency.
+//!
+//! A database lives in a local folder or, with the `object-store` cargo feature, under a
+//! prefix of an object store (`Database::open("s3://bucket/terrain")`); [`store`] holds both
+//! backends and says how each keeps the writer's guarantees.
 #![deny(missing_docs)]
 
 #[cfg(feature = "captures")]
@@ -29,11 +33,13 @@ pub mod error;
 pub mod heightfield;
 pub mod mesh;
 pub mod object;
+pub mod store;
 pub mod verify;
 pub mod write;
 
 pub use database::{Database, ReleaseView};
 pub use error::ReaderError;
 pub use heightfield::Heightfield;
+pub use store::Location;
 pub use verify::{verify, VerifyReport};
 pub use write::Writer;

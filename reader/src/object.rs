@@ -4,14 +4,13 @@
 //! a truncation or a swapped file is reported as corruption naming the object, the entry and the
 //! role, instead of surfacing as a confusing decode error later.
 
-use std::fs::File;
 use std::io::{self, Read};
-use std::path::{Path, PathBuf};
 
 use regolith_format::hash::Hasher;
 use regolith_format::{FileRef, ObjectId};
 
 use crate::error::{ReaderError, Result};
+use crate::store::Store;
 
 /// Where an object was referenced from, for error messages.
 #[derive(Debug, Clone)]
@@ -32,34 +31,34 @@ impl Site {
     }
 }
 
-/// The path of an object in a database rooted at `root`.
-pub fn object_path(root: &Path, id: &ObjectId) -> PathBuf {
-    root.join(id.object_path())
+/// The key of an object (`objects/sha256/<2>/<62>`).
+pub fn object_key(id: &ObjectId) -> String {
+    id.object_path()
 }
 
 /// Reads an object whole, checking its size (if given) and its hash.
 pub fn read_verified(
-    root: &Path,
+    store: &dyn Store,
     id: &ObjectId,
     size: Option<u64>,
     site: &Site,
 ) -> Result<Vec<u8>> {
-    let mut r = VerifyingReader::open(root, id, size, site.clone())?;
+    let mut r = VerifyingReader::open(store, id, size, site.clone())?;
     let mut buf = Vec::new();
     r.read_to_end(&mut buf)
-        .map_err(|e| unwrap_verify_error(e, root, id))?;
+        .map_err(|e| unwrap_verify_error(e, store, id))?;
     Ok(buf)
 }
 
 /// Reads the object a [`FileRef`] points to.
-pub fn read_ref(root: &Path, f: &FileRef, site: &Site) -> Result<Vec<u8>> {
-    read_verified(root, &f.object, Some(f.size), site)
+pub fn read_ref(store: &dyn Store, f: &FileRef, site: &Site) -> Result<Vec<u8>> {
+    read_verified(store, &f.object, Some(f.size), site)
 }
 
 /// Streams an object's bytes; at end of stream checks the size and hash and fails the last
 /// read with the corruption error if they differ.
 pub struct VerifyingReader {
-    file: File,
+    file: Box<dyn Read + Send>,
     hasher: Option<Hasher>,
     read: u64,
     id: ObjectId,
@@ -70,27 +69,18 @@ pub struct VerifyingReader {
 impl VerifyingReader {
     /// Opens an object for verified streaming.
     pub fn open(
-        root: &Path,
+        store: &dyn Store,
         id: &ObjectId,
         size: Option<u64>,
         site: Site,
     ) -> Result<VerifyingReader> {
-        let path = object_path(root, id);
-        let file = File::open(&path).map_err(|e| {
-            if e.kind() == io::ErrorKind::NotFound {
-                ReaderError::MissingObject {
-                    object: *id,
-                    entry: site.entry.clone(),
-                    role: site.role.clone(),
-                }
-            } else {
-                ReaderError::Io {
-                    op: "opening",
-                    path: path.clone(),
-                    source: e,
-                }
-            }
-        })?;
+        let file = store
+            .open_read(&object_key(id))?
+            .ok_or_else(|| ReaderError::MissingObject {
+                object: *id,
+                entry: site.entry.clone(),
+                role: site.role.clone(),
+            })?;
         Ok(VerifyingReader {
             file,
             hasher: Some(Hasher::new()),
@@ -143,7 +133,7 @@ impl Read for VerifyingReader {
 }
 
 /// Turns an io::Error produced by [`VerifyingReader`] back into the corruption error.
-pub fn unwrap_verify_error(e: io::Error, root: &Path, id: &ObjectId) -> ReaderError {
+pub fn unwrap_verify_error(e: io::Error, store: &dyn Store, id: &ObjectId) -> ReaderError {
     if e.get_ref().is_some_and(|inner| inner.is::<ReaderError>()) {
         if let Some(inner) = e.into_inner() {
             if let Ok(re) = inner.downcast::<ReaderError>() {
@@ -152,13 +142,13 @@ pub fn unwrap_verify_error(e: io::Error, root: &Path, id: &ObjectId) -> ReaderEr
         }
         return ReaderError::Io {
             op: "reading",
-            path: object_path(root, id),
+            path: store.describe(&object_key(id)).into(),
             source: io::Error::other("corrupt"),
         };
     }
     ReaderError::Io {
         op: "reading",
-        path: object_path(root, id),
+        path: store.describe(&object_key(id)).into(),
         source: e,
     }
 }

@@ -56,9 +56,12 @@ pub fn verify(db: &Database) -> Result<VerifyReport> {
     for (name, id) in db.refs()? {
         if crate::database::is_object_ref(&name) {
             report.objects_checked += 1;
-            if let Err(e) =
-                crate::object::read_verified(db.root(), &id, None, &Site::new(&name, "certificate"))
-            {
+            if let Err(e) = crate::object::read_verified(
+                &**db.store(),
+                &id,
+                None,
+                &Site::new(&name, "certificate"),
+            ) {
                 report.problems.push(Problem {
                     release: name.clone(),
                     object: id.to_hex(),
@@ -98,21 +101,20 @@ pub fn verify(db: &Database) -> Result<VerifyReport> {
                 continue;
             }
             let site = Site::new(entry, &role);
-            let result = VerifyingReader::open(db.root(), &f.object, Some(f.size), site).and_then(
-                |mut r| {
+            let result = VerifyingReader::open(&**db.store(), &f.object, Some(f.size), site)
+                .and_then(|mut r| {
                     let mut buf = vec![0u8; 1 << 20];
                     let mut n_total = 0u64;
                     loop {
                         let n = r
                             .read(&mut buf)
-                            .map_err(|e| unwrap_verify_error(e, db.root(), &f.object))?;
+                            .map_err(|e| unwrap_verify_error(e, &**db.store(), &f.object))?;
                         if n == 0 {
                             break Ok(n_total);
                         }
                         n_total += n as u64;
                     }
-                },
-            );
+                });
             report.objects_checked += 1;
             match result {
                 Ok(n) => {

@@ -10,28 +10,39 @@
 //! 3. refs are updated last, each by writing a temp file, fsync, rename.
 //!
 //! A writer killed at any point therefore leaves every earlier release readable and `verify`
-//! clean; at worst it leaves unreachable objects, which `gc` removes. A writer holds an
-//! exclusive lock on `DB/lock` for its lifetime, so `gc` never runs beside a writer.
+//! clean; at worst it leaves unreachable objects, which `gc` removes. In a local folder a writer
+//! holds an exclusive lock on `DB/lock` for its lifetime, so `gc` never runs beside a writer.
+//!
+//! On an object store ([`crate::store`], SPEC.md §2.1 "Databases on object stores") there is no
+//! lock: a PUT is atomic (rule 1), objects and `releases/…` refs are written create-only, and
+//! mutable refs (`latest`, certificates) by compare-and-swap on the version read, retried on a
+//! conflict. Two writers racing therefore never lose a release: both `releases/…` refs exist
+//! and `latest` ends on one of them. `gc` keeps unreachable objects younger than a grace
+//! period, since they may belong to a release another writer is committing.
 //!
 //! For crash tests, the environment variable `REGOLITH_FAILPOINT` names a step at which the
-//! process aborts (`object-renamed`, `objects-stored`, `manifest-stored`, `ref-temp-written`).
+//! process aborts (`object-renamed`, `objects-stored`, `manifest-stored`, `ref-temp-written`;
+//! on an object store the last fires just before the ref's conditional PUT).
 
 use std::collections::BTreeSet;
-use std::fs::{self, File, OpenOptions};
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, SystemTime};
 
 use regolith_format::manifest::{check_name, MANIFEST_MEDIA_TYPE};
 use regolith_format::{canonical_json, FileRef, ObjectId, Release, SCHEMA};
 use serde::Serialize;
 
-use crate::database::{certificate_ref, is_object_ref, Database, LATEST, MARKER, RELEASES_PREFIX};
+use crate::database::{
+    certificate_ref, is_object_ref, parse_ref, Database, LATEST, MARKER, RELEASES_PREFIX,
+};
 use crate::error::{ReaderError, Result};
-use crate::object::object_path;
+use crate::object::object_key;
+use crate::store::{Location, Store, WriteLock};
 
-static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+/// Prefix of the object keys.
+const OBJECTS_PREFIX: &str = "objects/sha256/";
+/// How often a compare-and-swap of a mutable ref is retried when other writers keep winning.
+const CAS_ATTEMPTS: usize = 32;
 
 /// Aborts the process if `REGOLITH_FAILPOINT` names this step (crash-safety tests only).
 fn failpoint(step: &str) {
@@ -45,9 +56,9 @@ fn failpoint(step: &str) {
 #[derive(Debug)]
 pub struct Writer {
     db: Database,
-    _lock: File,
-    /// Object files and fan-out folders this writer created, in order (see [`Writer::roll_back`]).
-    created: Mutex<Vec<PathBuf>>,
+    _lock: WriteLock,
+    /// Keys of the objects this writer created, in order (see [`Writer::roll_back`]).
+    created: Mutex<Vec<String>>,
 }
 
 /// What `gc` removed.
@@ -59,83 +70,41 @@ pub struct GcReport {
     pub removed: u64,
     /// Bytes freed.
     pub bytes_freed: u64,
+    /// Unreachable objects kept because they are younger than the grace period (they may
+    /// belong to a release another writer is committing).
+    pub kept_young: u64,
 }
 
 impl Writer {
-    /// Opens a database for writing, creating it if the folder is empty or absent.
-    /// A folder holding other files is refused ([`ReaderError::NotEmpty`]): a database among a
-    /// campaign's or a project's files would be mixed up with them.
-    pub fn create_or_open(path: impl AsRef<Path>) -> Result<Writer> {
-        Writer::open_with(path.as_ref(), None)
+    /// Opens a database for writing, creating it if the folder (or object-store prefix) is
+    /// empty or absent. A folder holding other files is refused ([`ReaderError::NotEmpty`]): a
+    /// database among a campaign's or a project's files would be mixed up with them. Accepts
+    /// what [`Database::open`] accepts.
+    pub fn create_or_open(location: impl Into<Location>) -> Result<Writer> {
+        Writer::open_with(location.into().open_store()?, None)
     }
 
     /// Opens an existing database for writing, waiting for another writer to finish instead
     /// of refusing: for a short write at the end of long work (a certificate after a
     /// validation, a fitted model after `gap`), so that the work itself holds no lock and
     /// several such commands can run on one database. `on_wait` is called once if the lock is
-    /// held by another process, before waiting.
-    pub fn open_waiting(path: impl AsRef<Path>, on_wait: &dyn Fn()) -> Result<Writer> {
-        let root = path.as_ref();
-        Database::open(root)?;
-        Writer::open_with(root, Some(on_wait))
+    /// held by another process, before waiting (never on object stores, which have no lock).
+    pub fn open_waiting(location: impl Into<Location>, on_wait: &dyn Fn()) -> Result<Writer> {
+        let db = Database::open(location)?;
+        Writer::open_with(db.store().clone(), Some(on_wait))
     }
 
     /// [`Writer::create_or_open`], or with `wait`, [`Writer::open_waiting`].
-    fn open_with(root: &Path, wait: Option<&dyn Fn()>) -> Result<Writer> {
-        let root = root.to_path_buf();
-        if !root.join(MARKER).exists() {
-            // Only what this function creates may be there already (an interrupted creation).
-            const SKELETON: [&str; 5] = ["objects", "refs", "logs", "tmp", "lock"];
-            let mut others: Vec<String> = fs::read_dir(&root)
-                .into_iter()
-                .flatten()
-                .flatten()
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .filter(|n| !SKELETON.contains(&n.as_str()))
-                .collect();
-            if !others.is_empty() {
-                others.sort();
-                return Err(ReaderError::NotEmpty {
-                    path: root,
-                    found: others,
-                });
-            }
-        }
-        for d in ["objects/sha256", "refs/releases", "logs", "tmp"] {
-            let p = root.join(d);
-            fs::create_dir_all(&p).map_err(ReaderError::io("creating", &p))?;
-        }
-        let lock_path = root.join("lock");
-        let lock = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&lock_path)
-            .map_err(ReaderError::io("opening", &lock_path))?;
-        match lock.try_lock() {
-            Ok(()) => {}
-            Err(std::fs::TryLockError::WouldBlock) => match wait {
-                Some(on_wait) => {
-                    on_wait();
-                    lock.lock()
-                        .map_err(ReaderError::io("locking", &lock_path))?;
-                }
-                None => return Err(ReaderError::Locked { path: root.clone() }),
-            },
-            Err(std::fs::TryLockError::Error(e)) => {
-                return Err(ReaderError::Io {
-                    op: "locking",
-                    path: lock_path,
-                    source: e,
-                });
-            }
-        }
-        let marker = root.join(MARKER);
-        if !marker.exists() {
+    fn open_with(store: Arc<dyn Store>, wait: Option<&dyn Fn()>) -> Result<Writer> {
+        let has_marker = store.head(MARKER)?.is_some();
+        store.prepare_create(has_marker)?;
+        let lock = store.lock(wait)?;
+        if !has_marker {
             let body = format!("{{\"schema\":\"{SCHEMA}\"}}\n");
-            write_atomic(&root, &marker, body.as_bytes())?;
+            // Create-only: of two writers creating one database, one marker wins (same bytes).
+            store.put_object(MARKER, body.as_bytes())?;
         }
-        let db = Database::open(&root)?;
+        let db = Database::open_store(store)?;
         Ok(Writer {
             db,
             _lock: lock,
@@ -158,17 +127,16 @@ impl Writer {
         if created.is_empty() {
             return Ok(0);
         }
-        let reachable: BTreeSet<PathBuf> = reachable_objects(&self.db)?
+        let reachable: BTreeSet<String> = reachable_objects(&self.db)?
             .iter()
-            .map(|id| object_path(self.db.root(), id))
+            .map(object_key)
             .collect();
+        let store = self.db.store();
         let mut removed = 0;
-        for path in created.iter().rev() {
-            if path.is_dir() {
-                // Only removed when empty: a fan-out folder still holding objects stays.
-                let _ = fs::remove_dir(path);
-            } else if !reachable.contains(path) {
-                fs::remove_file(path).map_err(ReaderError::io("removing", path))?;
+        for key in created.iter().rev() {
+            if !reachable.contains(key) {
+                store.delete(key)?;
+                store.remove_empty_parent(key);
                 removed += 1;
             }
         }
@@ -183,21 +151,13 @@ impl Writer {
     /// Stores bytes as an object (deduplicated) and returns its reference.
     pub fn put(&self, bytes: &[u8], media_type: &str) -> Result<FileRef> {
         let id = ObjectId::of_bytes(bytes);
-        let path = object_path(self.db.root(), &id);
-        if !path.exists() {
-            let mut created = Vec::new();
-            if let Some(parent) = path.parent() {
-                if !parent.is_dir() {
-                    created.push(parent.to_path_buf());
-                }
-                fs::create_dir_all(parent).map_err(ReaderError::io("creating", parent))?;
-            }
-            write_atomic(self.db.root(), &path, bytes)?;
-            created.push(path.clone());
+        let key = object_key(&id);
+        let store = self.db.store();
+        if store.head(&key)?.is_none() && store.put_object(&key, bytes)? {
             self.created
                 .lock()
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .extend(created);
+                .push(key);
             failpoint("object-renamed");
         }
         Ok(FileRef {
@@ -221,7 +181,7 @@ impl Writer {
             .normalise()
             .map_err(ReaderError::format(format!("release {}", release.label())))?;
         for (entry, role, f) in release.file_refs() {
-            if !object_path(self.db.root(), &f.object).is_file() {
+            if self.db.store().head(&object_key(&f.object))?.is_none() {
                 return Err(ReaderError::DanglingReference {
                     object: f.object,
                     entry: entry.to_string(),
@@ -238,12 +198,11 @@ impl Writer {
         let id = manifest.object;
         failpoint("manifest-stored");
         let tag = format!("{RELEASES_PREFIX}{label}");
-        match self.db.read_ref(&tag)? {
+        match self.create_ref(&tag, &id)? {
             Some(existing) if existing != id => {
                 return Err(ReaderError::ReleaseExists { label, existing });
             }
-            Some(_) => {}
-            None => self.set_ref(&tag, &id)?,
+            _ => {}
         }
         if update_latest {
             self.set_ref(LATEST, &id)?;
@@ -251,18 +210,59 @@ impl Writer {
         Ok(id)
     }
 
-    /// Points a ref at a release atomically and appends the change to the ref log.
+    /// Points a ref at a release atomically and appends the change to the ref log. On an
+    /// object store the write is a compare-and-swap against the value read, retried when
+    /// another writer moved the ref meanwhile (the last writer wins, none is lost half-way).
     pub fn set_ref(&self, name: &str, id: &ObjectId) -> Result<()> {
         check_name("ref name", name).map_err(ReaderError::format("ref"))?;
-        let old = self.db.read_ref(name)?;
-        let path = self.db.root().join("refs").join(name);
-        if let Some(parent) = path.parent() {
-            fs::create_dir_all(parent).map_err(ReaderError::io("creating", parent))?;
+        let key = format!("refs/{name}");
+        let store = self.db.store();
+        let body = format!("{id}\n");
+        for _ in 0..CAS_ATTEMPTS {
+            let current = store.get_versioned(&key)?;
+            let old = match &current {
+                Some((bytes, _)) => Some(parse_ref(bytes, &**store, &key)?),
+                None => None,
+            };
+            let expected = current.as_ref().map(|(_, v)| v);
+            if store.put_ref(&key, body.as_bytes(), expected, &|| {
+                failpoint("ref-temp-written")
+            })? {
+                return self.log_ref_change(name, old, id);
+            }
         }
-        write_atomic_with(self.db.root(), &path, format!("{id}\n").as_bytes(), || {
+        Err(ReaderError::Store {
+            location: store.describe(&key),
+            message: format!(
+                "other writers kept moving ref `{name}`; {CAS_ATTEMPTS} compare-and-swap \
+                 attempts failed"
+            ),
+        })
+    }
+
+    /// Creates an immutable ref (create-only); returns the id it already held if it existed,
+    /// leaving it unchanged.
+    fn create_ref(&self, name: &str, id: &ObjectId) -> Result<Option<ObjectId>> {
+        check_name("ref name", name).map_err(ReaderError::format("ref"))?;
+        let key = format!("refs/{name}");
+        let store = self.db.store();
+        let body = format!("{id}\n");
+        if let Some(existing) = self.db.read_ref(name)? {
+            return Ok(Some(existing));
+        }
+        if store.put_ref(&key, body.as_bytes(), None, &|| {
             failpoint("ref-temp-written")
-        })?;
-        let time = std::time::SystemTime::now()
+        })? {
+            self.log_ref_change(name, None, id)?;
+            return Ok(None);
+        }
+        // Another writer created it between the read and the write.
+        self.db.read_ref(name)
+    }
+
+    /// Appends one change to the ref log (the only place wall-clock time is kept).
+    fn log_ref_change(&self, name: &str, old: Option<ObjectId>, new: &ObjectId) -> Result<()> {
+        let time = SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map(|d| d.as_secs())
             .unwrap_or(0);
@@ -270,17 +270,9 @@ impl Writer {
             "time_unix_s": time,
             "ref": name,
             "old": old.map(|o| o.to_hex()),
-            "new": id.to_hex(),
+            "new": new.to_hex(),
         });
-        let log = self.db.root().join("logs/refs.jsonl");
-        let mut f = OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(&log)
-            .map_err(ReaderError::io("opening", &log))?;
-        writeln!(f, "{line}").map_err(ReaderError::io("appending to", &log))?;
-        f.sync_all().map_err(ReaderError::io("syncing", &log))?;
-        Ok(())
+        self.db.store().log_ref_change(&line)
     }
 
     /// Stores a certificate (canonical JSON) for an entry of a release and points
@@ -297,29 +289,50 @@ impl Writer {
     }
 
     /// Removes every object not reachable from a ref (following release parents) and
-    /// leftover temp files. Holds the write lock, so no writer runs meanwhile.
+    /// leftover temp files, with the store's default grace period (none in a local folder,
+    /// where the write lock keeps writers out; an hour on object stores).
     pub fn gc(&self) -> Result<GcReport> {
+        self.gc_with_grace(self.db.store().default_gc_grace())
+    }
+
+    /// [`Writer::gc`], keeping unreachable objects younger than `grace`: on an object store a
+    /// concurrent writer's objects are unreachable until its release's ref is written.
+    pub fn gc_with_grace(&self, grace: Duration) -> Result<GcReport> {
+        let store = self.db.store();
+        // Listed before the reachable set is computed: an object stored after the listing
+        // is not considered at all, one stored before is either reachable or old enough.
+        let listed = store.list(OBJECTS_PREFIX)?;
         let reachable = reachable_objects(&self.db)?;
+        let cutoff = SystemTime::now().checked_sub(grace);
         let mut report = GcReport::default();
-        let objects = self.db.root().join("objects/sha256");
-        for (path, id) in list_objects(&objects)? {
-            if id.is_some_and(|id| reachable.contains(&id)) {
+        for meta in listed {
+            if object_id_of_key(&meta.key).is_some_and(|id| reachable.contains(&id)) {
                 report.kept += 1;
                 continue;
             }
-            let len = fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-            fs::remove_file(&path).map_err(ReaderError::io("removing", &path))?;
-            report.removed += 1;
-            report.bytes_freed += len;
-        }
-        let tmp = self.db.root().join("tmp");
-        if let Ok(rd) = fs::read_dir(&tmp) {
-            for e in rd.flatten() {
-                let _ = fs::remove_file(e.path());
+            let young = !grace.is_zero()
+                && match (meta.modified, cutoff) {
+                    (Some(m), Some(c)) => m > c,
+                    _ => true, // age unknown: keep
+                };
+            if young {
+                report.kept_young += 1;
+                continue;
             }
+            store.delete(&meta.key)?;
+            report.removed += 1;
+            report.bytes_freed += meta.size;
         }
+        store.clean_scratch();
         Ok(report)
     }
+}
+
+/// The id an object key names (`None` for a stray key).
+fn object_id_of_key(key: &str) -> Option<ObjectId> {
+    let rest = key.strip_prefix(OBJECTS_PREFIX)?;
+    let (a, b) = rest.split_once('/')?;
+    format!("{a}{b}").parse().ok()
 }
 
 /// Every object id reachable from the refs: manifests, their parents (when present) and
@@ -345,67 +358,10 @@ pub fn reachable_objects(db: &Database) -> Result<BTreeSet<ObjectId>> {
             seen.insert(f.object);
         }
         if let Some(p) = view.manifest.parent {
-            if object_path(db.root(), &p).is_file() {
+            if db.store().head(&object_key(&p))?.is_some() {
                 stack.push(p);
             }
         }
     }
     Ok(seen)
-}
-
-/// Lists object files with the id their path names (`None` for a stray file).
-pub fn list_objects(objects: &Path) -> Result<Vec<(PathBuf, Option<ObjectId>)>> {
-    let mut out = Vec::new();
-    let Ok(rd) = fs::read_dir(objects) else {
-        return Ok(out);
-    };
-    let mut dirs: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
-    dirs.sort();
-    for d in dirs {
-        let prefix = d
-            .file_name()
-            .and_then(|n| n.to_str())
-            .unwrap_or_default()
-            .to_string();
-        let rd = fs::read_dir(&d).map_err(ReaderError::io("listing", &d))?;
-        let mut files: Vec<PathBuf> = rd.flatten().map(|e| e.path()).collect();
-        files.sort();
-        for f in files {
-            let rest = f.file_name().and_then(|n| n.to_str()).unwrap_or_default();
-            let id = format!("{prefix}{rest}").parse::<ObjectId>().ok();
-            out.push((f, id));
-        }
-    }
-    Ok(out)
-}
-
-/// Writes `bytes` to `dest` atomically: temp file in `root/tmp`, fsync, rename, fsync dir.
-pub fn write_atomic(root: &Path, dest: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomic_with(root, dest, bytes, || {})
-}
-
-fn write_atomic_with(
-    root: &Path,
-    dest: &Path,
-    bytes: &[u8],
-    before_rename: impl FnOnce(),
-) -> Result<()> {
-    let tmp_dir = root.join("tmp");
-    fs::create_dir_all(&tmp_dir).map_err(ReaderError::io("creating", &tmp_dir))?;
-    let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp = tmp_dir.join(format!("{}-{n}.tmp", std::process::id()));
-    {
-        let mut f = File::create(&tmp).map_err(ReaderError::io("creating", &tmp))?;
-        f.write_all(bytes)
-            .map_err(ReaderError::io("writing", &tmp))?;
-        f.sync_all().map_err(ReaderError::io("syncing", &tmp))?;
-    }
-    before_rename();
-    fs::rename(&tmp, dest).map_err(ReaderError::io("renaming into", dest))?;
-    if let Some(parent) = dest.parent() {
-        if let Ok(d) = File::open(parent) {
-            let _ = d.sync_all();
-        }
-    }
-    Ok(())
 }

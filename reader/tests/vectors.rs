@@ -61,6 +61,15 @@ fn check(case: &Path) {
     for e in release.entries().iter().filter(|e| e.kind == "mesh") {
         assert!(!release.mesh(&e.name).unwrap().is_empty());
     }
+    // Refs that name objects, not releases (certificates; since 1.10 validation units).
+    if let Some(n) = facts["object_refs"].as_u64() {
+        let refs = db.refs().unwrap();
+        let objects = refs
+            .keys()
+            .filter(|k| regolith_reader::database::is_object_ref(k))
+            .count();
+        assert_eq!(objects as u64, n, "{refs:?}");
+    }
     let report = verify(&db).unwrap();
     assert!(report.ok(), "{:?}", report.problems);
     assert!(report.objects_checked >= 10);

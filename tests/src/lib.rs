@@ -2,10 +2,12 @@
 //! every kind, deterministically, through the real encoders and the real writer. The test vectors
 //! in `format-spec/test-vectors/` are this release, and the crash, corruption and CLI tests use it.
 //! [`albedo_truth`] compares an entry's texture with a corpus campaign's true albedo;
-//! [`gap_case`] runs one case of the gap workflow's proof on hidden effects.
+//! [`gap_case`] runs one case of the gap workflow's proof on hidden effects; [`moto`] runs an
+//! S3-compatible server for the object-store tests.
 
 pub mod albedo_truth;
 pub mod gap_case;
+pub mod moto;
 pub mod sample;
 
 /// The workspace root (for finding `format-spec/`, `../shared/` and the binaries).

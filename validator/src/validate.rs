@@ -23,7 +23,7 @@ use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 use regolith_format::kinds::{self, HeightfieldMeta};
-use regolith_format::Entry;
+use regolith_format::{Entry, ObjectId};
 use regolith_reader::captures::{CaptureImage, ImageKind};
 use regolith_reader::heightfield::decode_grey_png;
 use regolith_reader::{ReaderError, ReleaseView};
@@ -163,7 +163,7 @@ impl Default for ValidateOptions {
 }
 
 /// Figures of one (capture, camera, detector).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ViewMetrics {
     /// Capture name.
     pub capture: String,
@@ -186,7 +186,7 @@ pub struct ViewMetrics {
 }
 
 /// Region repeatability of one MSER view (overlap error < 40 %, 30 px normalisation).
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RegionMetrics {
     /// Real → render.
     pub sim: RegionRepeatability,
@@ -195,12 +195,27 @@ pub struct RegionMetrics {
 }
 
 /// SIFT matching of one view.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MatchingMetrics {
     /// Real → render.
     pub sim: MatchingFigures,
     /// Real a → real b (the ceiling).
     pub ceiling: Option<MatchingFigures>,
+}
+
+/// Everything measured at one view (capture, camera) for one entry: the unit of work of a
+/// validation. A certificate is made from the results of every view, in [`Validator::views`]
+/// order, whether they were computed in one process or in shards ([`Validator::view_results`],
+/// [`Validator::certify`]); a stored result reads back to the same numbers (canonical JSON
+/// keeps every f64 exactly), so a merged certificate is byte-identical to a one-process one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ViewResult {
+    /// Per detector, in the options' order.
+    pub metrics: Vec<ViewMetrics>,
+    /// Photometric agreement of the render with real frame a.
+    pub photometric: Photometric,
+    /// Log10 power ratio render ÷ real per frequency band (8 bands up to 0.5 cycles/px).
+    pub spectrum_log_ratio: Vec<f64>,
 }
 
 /// The figures of one view and detector that the certificate aggregates.
@@ -651,113 +666,226 @@ impl<'v> Validator<'v> {
         entry: &str,
         observe: Option<&(dyn Fn(&ViewArtifacts<'_>) + Sync)>,
     ) -> Result<Certificate, ReaderError> {
-        let (view, opts, light) = (self.view, &self.opts, &self.light);
-        let e = view.entry(entry)?;
+        let all: Vec<usize> = (0..self.views.len()).collect();
+        let results = self.view_results(entry, &all, observe)?;
+        self.certify(entry, results)
+    }
+
+    /// The results of `entry` at the views numbered `ks` (indices into [`Validator::views`]),
+    /// in that order, computed in parallel: a shard of a validation, or all of it.
+    pub fn view_results(
+        &self,
+        entry: &str,
+        ks: &[usize],
+        observe: Option<&(dyn Fn(&ViewArtifacts<'_>) + Sync)>,
+    ) -> Result<Vec<ViewResult>, ReaderError> {
+        if ks.is_empty() {
+            return Ok(Vec::new());
+        }
+        let view = self.view;
+        view.entry(entry)?;
         let sensor = stored_model(view, entry)?;
         let geometry = entry_geometry(view, entry)?;
         // Renders here are samples (with the model's noise), so they carry its texture detail too.
         let geometry = sensor.detailed(&geometry).unwrap_or(geometry);
         let scene = Scene::new(&geometry);
-        let caps_entry = view.entry_of_kind("captures", kinds::CAPTURES)?;
-        let params = DetectorParams::default();
-        let eps = opts.thresholds.epsilon_px;
+        let work = EntryWork {
+            entry,
+            scene: &scene,
+            sensor: &sensor,
+            curve: self.epsilon_curve(),
+        };
+        ks.par_iter()
+            .map(|&k| self.view_result(&work, k, observe))
+            .collect()
+    }
+
+    /// The ε curve measured: the standard one and the certified ε.
+    fn epsilon_curve(&self) -> Vec<f64> {
+        let eps = self.opts.thresholds.epsilon_px;
         let mut curve: Vec<f64> = EPSILONS.to_vec();
         if !curve.iter().any(|e| (e - eps).abs() < 1e-9) {
             curve.push(eps);
         }
-        let views_in = &self.views;
-        let per_view: Vec<(Vec<ViewMetrics>, Photometric, Vec<f64>)> = (0..views_in.len())
-            .into_par_iter()
-            .map(|k| -> Result<_, ReaderError> {
-                let (capture, camera) = &views_in[k];
-                let real = self.real(k, entry)?;
-                let (real_a, real_b) = (&real.a, real.b.as_ref());
-                let (sim_img, rendered) = render_view(
-                    view,
-                    entry,
-                    &scene,
-                    light,
-                    &self.images,
-                    capture,
-                    camera,
-                    &sensor,
-                    real_a,
-                )?;
-                let w = sim_img.width;
-                let seen = |p: [f64; 2]| {
-                    let (x, y) = (p[0].round(), p[1].round());
-                    x >= 0.0
-                        && y >= 0.0
-                        && (x as usize) < w
-                        && (y as usize) < sim_img.height
-                        && rendered.mask[y as usize * w + x as usize] == 255
-                };
-                let seen_px = rendered.mask.iter().filter(|&&m| m == 255).count() as f64;
-                let mut out = Vec::new();
-                let mut kps = Vec::new();
-                for (&d, (on_a, on_b)) in opts.detectors.iter().zip(&real.found) {
-                    let on_render = detect(&sim_img, d, &params);
-                    let found = ViewDetections {
-                        real_a: on_a,
-                        render: &on_render,
-                        real_b: on_b.as_ref(),
-                    };
-                    let c = compare(found, d, seen, seen_px, &curve, eps);
-                    out.push(ViewMetrics {
-                        capture: capture.clone(),
-                        camera: camera.clone(),
-                        detector: d,
-                        counts: [c.real.len(), c.render.len()],
-                        sim: c.sim,
-                        ceiling: c.ceiling,
-                        regions: c
-                            .regions
-                            .map(|(sim, ceiling)| RegionMetrics { sim, ceiling }),
-                        matching: c
-                            .matching
-                            .map(|(sim, ceiling)| MatchingMetrics { sim, ceiling }),
-                    });
-                    if observe.is_some() {
-                        kps.push(DetectorKeypoints {
-                            detector: d,
-                            repeated: c.repeated,
-                            real: c.real,
-                            render: c.render,
-                        });
-                    }
-                }
-                let mask: Vec<bool> = rendered.mask.iter().map(|&m| m == 255).collect();
-                let to255 = |g: &GreyF32| g.data.iter().map(|v| v * 255.0).collect::<Vec<f32>>();
-                let (ra, rs) = (to255(real_a), to255(&sim_img));
-                let photo = photometric::compare(&ra, &rs, &mask, w, sim_img.height);
-                let (spec_s, spec_a) = (
-                    radial_spectrum(&rs, w, sim_img.height, 8),
-                    radial_spectrum(&ra, w, sim_img.height, 8),
-                );
-                let lr = log_ratio(&spec_s, &spec_a);
-                if let Some(observe) = observe {
-                    observe(&ViewArtifacts {
-                        capture,
-                        camera,
-                        real_a,
-                        real_b,
-                        render: &sim_img,
-                        mask: &rendered.mask,
-                        keypoints: kps,
-                        spectra: [&spec_a, &spec_s],
-                    });
-                }
-                Ok((out, photo, lr))
-            })
-            .collect::<Result<_, _>>()?;
+        curve
+    }
+
+    /// Renders `work.entry` at view `k` and measures it against the real frames.
+    fn view_result(
+        &self,
+        work: &EntryWork<'_>,
+        k: usize,
+        observe: Option<&(dyn Fn(&ViewArtifacts<'_>) + Sync)>,
+    ) -> Result<ViewResult, ReaderError> {
+        let entry = work.entry;
+        let Some((capture, camera)) = self.views.get(k) else {
+            return Err(decode_err(
+                entry,
+                format!(
+                    "view {k} does not exist (the release has {} views)",
+                    self.views.len()
+                ),
+            ));
+        };
+        let opts = &self.opts;
+        let params = DetectorParams::default();
+        let eps = opts.thresholds.epsilon_px;
+        let real = self.real(k, entry)?;
+        let (real_a, real_b) = (&real.a, real.b.as_ref());
+        let (sim_img, rendered) = render_view(
+            self.view,
+            entry,
+            work.scene,
+            &self.light,
+            &self.images,
+            capture,
+            camera,
+            work.sensor,
+            real_a,
+        )?;
+        let w = sim_img.width;
+        let seen = |p: [f64; 2]| {
+            let (x, y) = (p[0].round(), p[1].round());
+            x >= 0.0
+                && y >= 0.0
+                && (x as usize) < w
+                && (y as usize) < sim_img.height
+                && rendered.mask[y as usize * w + x as usize] == 255
+        };
+        let seen_px = rendered.mask.iter().filter(|&&m| m == 255).count() as f64;
+        let mut metrics = Vec::new();
+        let mut kps = Vec::new();
+        for (&d, (on_a, on_b)) in opts.detectors.iter().zip(&real.found) {
+            let on_render = detect(&sim_img, d, &params);
+            let found = ViewDetections {
+                real_a: on_a,
+                render: &on_render,
+                real_b: on_b.as_ref(),
+            };
+            let c = compare(found, d, seen, seen_px, &work.curve, eps);
+            metrics.push(ViewMetrics {
+                capture: capture.clone(),
+                camera: camera.clone(),
+                detector: d,
+                counts: [c.real.len(), c.render.len()],
+                sim: c.sim,
+                ceiling: c.ceiling,
+                regions: c
+                    .regions
+                    .map(|(sim, ceiling)| RegionMetrics { sim, ceiling }),
+                matching: c
+                    .matching
+                    .map(|(sim, ceiling)| MatchingMetrics { sim, ceiling }),
+            });
+            if observe.is_some() {
+                kps.push(DetectorKeypoints {
+                    detector: d,
+                    repeated: c.repeated,
+                    real: c.real,
+                    render: c.render,
+                });
+            }
+        }
+        let mask: Vec<bool> = rendered.mask.iter().map(|&m| m == 255).collect();
+        let to255 = |g: &GreyF32| g.data.iter().map(|v| v * 255.0).collect::<Vec<f32>>();
+        let (ra, rs) = (to255(real_a), to255(&sim_img));
+        let photometric = photometric::compare(&ra, &rs, &mask, w, sim_img.height);
+        let (spec_s, spec_a) = (
+            radial_spectrum(&rs, w, sim_img.height, 8),
+            radial_spectrum(&ra, w, sim_img.height, 8),
+        );
+        let spectrum_log_ratio = log_ratio(&spec_s, &spec_a);
+        if let Some(observe) = observe {
+            observe(&ViewArtifacts {
+                capture,
+                camera,
+                real_a,
+                real_b,
+                render: &sim_img,
+                mask: &rendered.mask,
+                keypoints: kps,
+                spectra: [&spec_a, &spec_s],
+            });
+        }
+        Ok(ViewResult {
+            metrics,
+            photometric,
+            spectrum_log_ratio,
+        })
+    }
+
+    /// The certificate of `entry` from the results of every view, in [`Validator::views`]
+    /// order (from [`Validator::view_results`] here or in shards).
+    pub fn certify(
+        &self,
+        entry: &str,
+        results: Vec<ViewResult>,
+    ) -> Result<Certificate, ReaderError> {
+        if results.len() != self.views.len() {
+            return Err(decode_err(
+                entry,
+                format!(
+                    "{} view results for {} views: a certificate needs every view",
+                    results.len(),
+                    self.views.len()
+                ),
+            ));
+        }
+        let view = self.view;
+        let e = view.entry(entry)?;
+        let sensor = stored_model(view, entry)?;
+        let caps_entry = view.entry_of_kind("captures", kinds::CAPTURES)?;
         certificate(
-            view, entry, e, caps_entry, opts, light, &sensor, views_in, per_view,
+            view,
+            entry,
+            e,
+            caps_entry,
+            &self.opts,
+            &self.light,
+            &sensor,
+            &self.views,
+            results,
         )
+    }
+
+    /// The content key of the unit (`entry`, view `k`): the SHA-256 of the canonical JSON of
+    /// everything its result depends on — the release (its manifest fixes the entry, the
+    /// captures, the sensor model and the light), the entry, the view, the detectors, the
+    /// thresholds and the validator's version. Shards store a unit's result under it, so a
+    /// re-run finds what is done and a changed input is never served a stale result.
+    pub fn unit_key(&self, entry: &str, k: usize) -> Result<ObjectId, ReaderError> {
+        let Some((capture, camera)) = self.views.get(k) else {
+            return Err(decode_err(entry, format!("view {k} does not exist")));
+        };
+        let key = json!({
+            "schema": UNIT_SCHEMA,
+            "release_id": self.view.id.to_hex(),
+            "entry": entry,
+            "capture": capture,
+            "camera": camera,
+            "detectors": self.opts.detectors,
+            "thresholds": self.opts.thresholds,
+            "validator_version": VALIDATOR_VERSION,
+        });
+        let bytes = regolith_format::canonical_json::to_vec(&key)
+            .map_err(|e| decode_err(entry, e.to_string()))?;
+        Ok(ObjectId::of_bytes(&bytes))
     }
 }
 
+/// Schema of a validation unit's key and stored result (SPEC §2, `units/` refs).
+pub const UNIT_SCHEMA: &str = "regolith.validate-unit/1";
+
+/// What every view of one entry shares: the scene, the sensor model, the ε curve.
+struct EntryWork<'a> {
+    entry: &'a str,
+    scene: &'a Scene<'a>,
+    sensor: &'a SensorModel,
+    curve: Vec<f64>,
+}
+
 /// The certificate of `entry` from its per-view figures.
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+#[allow(clippy::too_many_arguments)]
 fn certificate(
     view: &ReleaseView,
     entry: &str,
@@ -767,16 +895,16 @@ fn certificate(
     light: &Light,
     sensor: &SensorModel,
     views_in: &[(String, String)],
-    per_view: Vec<(Vec<ViewMetrics>, Photometric, Vec<f64>)>,
+    per_view: Vec<ViewResult>,
 ) -> Result<Certificate, ReaderError> {
     let eps = opts.thresholds.epsilon_px;
     let mut views = Vec::new();
     let mut photo = Vec::new();
     let mut spectrum = vec![0.0; 8];
-    for ((v, p, lr), (capture, camera)) in per_view.into_iter().zip(views_in) {
-        views.extend(v);
-        photo.push((capture.clone(), camera.clone(), p));
-        for (s, x) in spectrum.iter_mut().zip(&lr) {
+    for (r, (capture, camera)) in per_view.into_iter().zip(views_in) {
+        views.extend(r.metrics);
+        photo.push((capture.clone(), camera.clone(), r.photometric));
+        for (s, x) in spectrum.iter_mut().zip(&r.spectrum_log_ratio) {
             *s += x / views_in.len().max(1) as f64;
         }
     }

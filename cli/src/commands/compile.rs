@@ -8,7 +8,7 @@ use regolith_compiler::compile;
 use regolith_compiler::ingest::campaign;
 use regolith_compiler::inventory;
 use regolith_format::limits::Limits;
-use regolith_reader::Writer;
+use regolith_reader::{Location, Writer};
 
 use super::{human_bytes, print_json};
 use crate::progress::Progress;
@@ -17,7 +17,7 @@ use crate::Outcome;
 pub fn run(
     path: &Path,
     check: bool,
-    db: Option<&Path>,
+    db: Option<&Location>,
     release: Option<&str>,
     json: bool,
 ) -> anyhow::Result<Outcome> {
@@ -46,8 +46,9 @@ pub fn run(
         anyhow::bail!("`regolith compile` needs --db DB (or --check to only parse the campaign)");
     };
     // A compile that fails leaves the database as it was (the compiler takes back its objects);
-    // a database this run created is removed whole.
-    let created = !db.exists();
+    // a database folder this run created is removed whole (on an object store the roll-back
+    // leaves at most the marker: there is no folder to remove).
+    let created = db.as_local().is_some_and(|p| !p.exists());
     let writer = Writer::create_or_open(db)?;
     let progress = Progress::new();
     let opts = compile::options(&c, release);
@@ -56,9 +57,9 @@ pub fn run(
         Ok(s) => s,
         Err(e) => {
             drop(writer);
-            if created {
+            if let (true, Some(path)) = (created, db.as_local()) {
                 // Best effort: the compile's own error is the one to report.
-                let _ = std::fs::remove_dir_all(db);
+                let _ = std::fs::remove_dir_all(path);
             }
             return Err(e.into());
         }

@@ -1,16 +1,14 @@
 //! `regolith control DB --entry E --texture-blur-m S`: a negative control for the release gate
 //! (`regolith_validator::control`): the entry with its texture blurred, in a child release.
 
-use std::path::Path;
-
-use regolith_reader::{Database, Writer};
+use regolith_reader::{Database, Location, Writer};
 use regolith_validator::control::blurred_texture;
 
 use super::print_json;
 use crate::Outcome;
 
 pub fn run(
-    db: &Path,
+    db: &Location,
     release: &str,
     entry: &str,
     sigma_m: f64,

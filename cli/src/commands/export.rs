@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use regolith_format::kinds::{self, roles};
-use regolith_reader::Database;
+use regolith_reader::{Database, Location};
 use serde_json::json;
 
 use super::print_json;
@@ -36,7 +36,7 @@ fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> anyhow::Result<()> {
 }
 
 pub fn run(
-    db: &Path,
+    db: &Location,
     release: &str,
     entry: &str,
     to: &Path,

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use regolith_reader::{Database, Writer};
+use regolith_reader::{Database, Location, Writer};
 use regolith_validator::gap::{self, apply, GapOptions};
 use serde_json::json;
 
@@ -13,7 +13,7 @@ use crate::Outcome;
 
 #[allow(clippy::too_many_arguments)]
 pub fn run(
-    db: &Path,
+    db: &Location,
     release: &str,
     entry: &str,
     captures: &[String],
@@ -96,6 +96,11 @@ pub fn run(
                 100.0 * n.explained_fraction,
                 params.join(" ")
             );
+            if !n.plain.is_empty() {
+                let plain: Vec<String> =
+                    n.plain.iter().map(|(k, v)| format!("{k}={v:.4}")).collect();
+                say!("  {:<12} i.e. {}", "", plain.join(" "));
+            }
             say!("  {:<12} evidence: {}", "", n.evidence);
         }
         let (b, a) = (&result.metrics_before, &result.metrics_after);

@@ -1,17 +1,16 @@
 //! `regolith inspect DB [RELEASE [ENTRY]]`: what a database, a release or an entry holds.
 
-use std::path::Path;
-
 use regolith_format::kinds;
 use regolith_format::Entry;
-use regolith_reader::{Database, ReleaseView};
+use regolith_reader::database::{RELEASES_PREFIX, UNITS_PREFIX};
+use regolith_reader::{Database, Location, ReleaseView};
 use serde_json::{json, Value};
 
 use super::{human_bytes, print_json};
 use crate::Outcome;
 
 pub fn run(
-    db: &Path,
+    db: &Location,
     release: Option<&str>,
     entry: Option<&str>,
     json_out: bool,
@@ -46,7 +45,7 @@ fn database_summary(db: &Database, json_out: bool) -> anyhow::Result<()> {
             .collect();
         return print_json(&json!({"releases": releases, "refs": refs}));
     }
-    say!("{} release(s) in {}", releases.len(), db.root().display());
+    say!("{} release(s) in {}", releases.len(), db.location());
     for r in &releases {
         say!(
             "  {:<32} {}  {:>3} entries  {}",
@@ -60,8 +59,17 @@ fn database_summary(db: &Database, json_out: bool) -> anyhow::Result<()> {
             human_bytes(r["bytes"].as_u64().unwrap_or(0))
         );
     }
-    for (name, id) in refs.iter().filter(|(k, _)| !k.starts_with("releases/")) {
+    // Unit results of sharded validations can be thousands: counted, not listed (`--json`
+    // lists every ref).
+    let units = refs.keys().filter(|k| k.starts_with(UNITS_PREFIX)).count();
+    for (name, id) in refs
+        .iter()
+        .filter(|(k, _)| !k.starts_with(RELEASES_PREFIX) && !k.starts_with(UNITS_PREFIX))
+    {
         say!("  ref {name} -> {}", id.short());
+    }
+    if units > 0 {
+        say!("  {units} unit result(s) of sharded validations ({UNITS_PREFIX}…)");
     }
     Ok(())
 }

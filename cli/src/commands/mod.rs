@@ -15,16 +15,19 @@ mod validate;
 mod verify;
 
 use crate::args::{Cli, Command};
-use crate::paths::{absolute as abs, absolute_opt as abs_opt};
+use crate::paths::{absolute as abs, absolute_opt as abs_opt, db_location as loc};
 use crate::Outcome;
 
+pub use validate::Shard;
+
 /// Runs the parsed command. Every path argument goes through [`crate::paths`] first, so each
-/// command sees an absolute path whatever form the user typed.
+/// command sees an absolute path whatever form the user typed, and every DB argument becomes a
+/// [`regolith_reader::Location`] (a folder or an object-store URL).
 pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
     match &cli.command {
-        Command::Verify { db } => verify::run(&abs(db)?, cli.json),
+        Command::Verify { db } => verify::run(&loc(db)?, cli.json),
         Command::Inspect { db, release, entry } => {
-            inspect::run(&abs(db)?, release.as_deref(), entry.as_deref(), cli.json)
+            inspect::run(&loc(db)?, release.as_deref(), entry.as_deref(), cli.json)
         }
         Command::Export {
             db,
@@ -32,14 +35,14 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             entry,
             to,
             profile,
-        } => export::run(&abs(db)?, release, entry, &abs(to)?, *profile, cli.json),
-        Command::Gc { db } => gc::run(&abs(db)?, cli.json),
+        } => export::run(&loc(db)?, release, entry, &abs(to)?, *profile, cli.json),
+        Command::Gc { db, grace_seconds } => gc::run(&loc(db)?, *grace_seconds, cli.json),
         Command::Control {
             db,
             release,
             entry,
             texture_blur_m,
-        } => control::run(&abs(db)?, release, entry, *texture_blur_m, cli.json),
+        } => control::run(&loc(db)?, release, entry, *texture_blur_m, cli.json),
         Command::Gap {
             db,
             release,
@@ -50,7 +53,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             min_share,
             report,
         } => gap::run(
-            &abs(db)?,
+            &loc(db)?,
             release,
             entry,
             captures,
@@ -65,7 +68,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             release,
             publish,
             allow_uncertified,
-        } => release::run(&abs(db)?, release, *publish, *allow_uncertified, cli.json),
+        } => release::run(&loc(db)?, release, *publish, *allow_uncertified, cli.json),
         Command::Validate {
             db,
             release,
@@ -73,14 +76,23 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
             detector,
             thresholds,
             report,
+            shard,
+            merge,
         } => validate::run(
-            &abs(db)?,
-            release,
-            entry,
-            detector,
-            abs_opt(thresholds.as_deref())?.as_deref(),
-            abs_opt(report.as_deref())?.as_deref(),
-            cli.json,
+            &validate::Request {
+                db: &loc(db)?,
+                release,
+                entries: entry,
+                detectors: detector,
+                thresholds: abs_opt(thresholds.as_deref())?.as_deref(),
+                report: abs_opt(report.as_deref())?.as_deref(),
+                json: cli.json,
+            },
+            match (shard, merge) {
+                (Some(s), _) => validate::Mode::Shard(*s),
+                (None, true) => validate::Mode::Merge,
+                (None, false) => validate::Mode::Whole,
+            },
         ),
         Command::Compile {
             campaign,
@@ -90,7 +102,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<Outcome> {
         } => compile::run(
             &abs(campaign)?,
             *check,
-            abs_opt(db.as_deref())?.as_deref(),
+            db.as_deref().map(loc).transpose()?.as_ref(),
             release.as_deref(),
             cli.json,
         ),

@@ -5,17 +5,15 @@
 //! `allow_uncertified: true` (version `<version>+uncertified`), so the exception is visible to
 //! every reader.
 
-use std::path::Path;
-
 use anyhow::bail;
-use regolith_reader::{Database, Writer};
+use regolith_reader::{Database, Location, Writer};
 use regolith_validator::validate::CERTIFIED_KINDS;
 
 use super::print_json;
 use crate::Outcome;
 
 pub fn run(
-    db: &Path,
+    db: &Location,
     release: &str,
     publish: bool,
     allow_uncertified: bool,

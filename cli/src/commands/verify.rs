@@ -1,14 +1,12 @@
 //! `regolith verify DB`: rehash everything reachable; exit 1 with the list of problems.
 
-use std::path::Path;
-
 use anyhow::Context;
-use regolith_reader::Database;
+use regolith_reader::{Database, Location};
 
 use super::{human_bytes, print_json};
 use crate::Outcome;
 
-pub fn run(db: &Path, json: bool) -> anyhow::Result<Outcome> {
+pub fn run(db: &Location, json: bool) -> anyhow::Result<Outcome> {
     let database = Database::open(db)?;
     let report = regolith_reader::verify(&database)
         .with_context(|| format!("verifying {}", db.display()))?;

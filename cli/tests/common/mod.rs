@@ -277,3 +277,41 @@ fn short(v: &serde_json::Value) -> String {
         s
     }
 }
+
+/// Generates a `mini` corpus campaign of `seed` into `camp`, its frames made by the
+/// validator's own model (fast; for tests of plumbing, not of the gap or the gate's figures).
+pub fn generate_mini(camp: &std::path::Path, seed: u64) {
+    let out = regolith(&[
+        "corpus",
+        "generate",
+        "--renderer",
+        "model",
+        "--preset",
+        "mini",
+        "--seed",
+        &seed.to_string(),
+        "--out",
+        camp.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The (entry, certificate id) pairs of a `validate --json` output.
+pub fn certificate_ids(v: &serde_json::Value) -> Vec<(String, String)> {
+    v["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["entry"].as_str().unwrap().to_string(),
+                e["certificate"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}

@@ -11,7 +11,7 @@
 //! both see is the render's terrain mask. For SIFT + RANSAC the model is a homography (the
 //! identity is one); a fundamental matrix is undetermined without a baseline.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::matching::{
     match_descriptors, matching_score, verify_matches, MatchParams, MatchReport, MatchingScore,
@@ -24,7 +24,7 @@ use crate::features::sift::detect_and_describe_sift;
 use crate::features::{self, Detector, DetectorParams, GreyF32, Keypoint};
 
 /// SIFT matching figures of one pair of images.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MatchingFigures {
     /// Matching score (Mikolajczyk & Schmid) at the certified ε.
     pub score: MatchingScore,

@@ -108,7 +108,7 @@ pub fn match_descriptors(a: &[Vec<f32>], b: &[Vec<f32>], p: &MatchParams) -> Vec
 }
 
 /// The matching score at one ε.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MatchingScore {
     /// Tolerance, px.
     pub epsilon_px: f64,
@@ -175,7 +175,7 @@ pub fn matching_score(
 }
 
 /// The thesis's Table 6.1 figures for one image pair.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MatchReport {
     /// Model fitted by RANSAC.
     pub model: ModelKind,

@@ -1,10 +1,10 @@
 //! Photometric agreement inside a common mask: RMS difference and SSIM (Wang et al. 2004 with an
 //! 11×11 Gaussian window, σ = 1.5, K1 = 0.01, K2 = 0.03, dynamic range 255).
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Photometric figures.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Photometric {
     /// Pixels compared.
     pub pixels: usize,

@@ -422,7 +422,7 @@ impl Default for RegionParams {
 
 /// The figures of one region comparison (the counterpart of
 /// [`super::repeatability::Repeatability`], with an overlap-error tolerance instead of ε).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RegionRepeatability {
     /// Overlap-error tolerance.
     pub max_overlap_error: f64,

@@ -14,10 +14,10 @@
 //! (Cohen's kappa form: 0 = no better than chance, 1 = every A keypoint re-detected). It neither
 //! rewards a render with few keypoints (as min(n) does) nor one with many.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The figures of one comparison at one ε.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Repeatability {
     /// Tolerance in pixels.
     pub epsilon_px: f64,
