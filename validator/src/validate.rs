@@ -460,6 +460,14 @@ pub fn campaign_light(view: &ReleaseView) -> Result<Light, ReaderError> {
     )
 }
 
+/// Bands of the radial spectra compared per view.
+const SPECTRUM_BANDS: usize = 8;
+
+/// An image's grey levels 0–255 (the contrast-normalised images are 0–1).
+fn to255(g: &GreyF32) -> Vec<f32> {
+    g.data.iter().map(|v| v * 255.0).collect()
+}
+
 /// The raw frame `k` of one view.
 fn raw_frame<'i>(
     images: &'i [CaptureImage],
@@ -604,6 +612,8 @@ struct RealView {
     a: GreyF32,
     b: Option<GreyF32>,
     found: Vec<(Detected, Option<Detected>)>,
+    /// Radial spectrum of frame a in grey levels 0–255 (the render's is compared with it).
+    spectrum: RadialSpectrum,
 }
 
 impl<'v> Validator<'v> {
@@ -653,7 +663,13 @@ impl<'v> Validator<'v> {
                 (detect(&a, d, &params), on_b)
             })
             .collect();
-        let r = Arc::new(RealView { a, b, found });
+        let spectrum = radial_spectrum(&to255(&a), a.width, a.height, SPECTRUM_BANDS);
+        let r = Arc::new(RealView {
+            a,
+            b,
+            found,
+            spectrum,
+        });
         *slot = Some(Arc::clone(&r));
         Ok(r)
     }
@@ -787,14 +803,11 @@ impl<'v> Validator<'v> {
             }
         }
         let mask: Vec<bool> = rendered.mask.iter().map(|&m| m == 255).collect();
-        let to255 = |g: &GreyF32| g.data.iter().map(|v| v * 255.0).collect::<Vec<f32>>();
         let (ra, rs) = (to255(real_a), to255(&sim_img));
         let photometric = photometric::compare(&ra, &rs, &mask, w, sim_img.height);
-        let (spec_s, spec_a) = (
-            radial_spectrum(&rs, w, sim_img.height, 8),
-            radial_spectrum(&ra, w, sim_img.height, 8),
-        );
-        let spectrum_log_ratio = log_ratio(&spec_s, &spec_a);
+        let spec_s = radial_spectrum(&rs, w, sim_img.height, SPECTRUM_BANDS);
+        let spec_a = &real.spectrum;
+        let spectrum_log_ratio = log_ratio(&spec_s, spec_a);
         if let Some(observe) = observe {
             observe(&ViewArtifacts {
                 capture,
@@ -804,7 +817,7 @@ impl<'v> Validator<'v> {
                 render: &sim_img,
                 mask: &rendered.mask,
                 keypoints: kps,
-                spectra: [&spec_a, &spec_s],
+                spectra: [spec_a, &spec_s],
             });
         }
         Ok(ViewResult {

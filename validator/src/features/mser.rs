@@ -58,43 +58,78 @@ impl Default for MserParams {
 
 const NONE: u32 = u32::MAX;
 
-/// A component-tree node.
+/// A component-tree node: what the stability test walks (its moments are kept apart, in
+/// [`Tree::mom`], so the walks up and down the tree touch 12 bytes per node, not 52).
 #[derive(Debug, Clone, Copy)]
 struct Node {
-    level: u8,
     size: u32,
     parent: u32,
-    /// `Σx, Σy, Σx², Σxy, Σy²`.
-    mom: [u64; 5],
+    level: u8,
 }
 
-/// Root of `i` with path halving.
-fn find(parent: &mut [u32], mut i: u32) -> u32 {
-    loop {
-        let p = parent.get(i as usize).copied().unwrap_or(i);
-        if p == i {
-            return i;
-        }
-        let gp = parent.get(p as usize).copied().unwrap_or(p);
-        if let Some(slot) = parent.get_mut(i as usize) {
-            *slot = gp;
-        }
-        i = gp;
-    }
-}
-
-/// Per-pixel union-find state: parent, component size and moments, latest tree node.
-struct Forest {
-    parent: Vec<u32>,
-    added: Vec<bool>,
-    size: Vec<u32>,
+/// The component tree of one polarity: nodes in creation order (children before parents) and
+/// each node's moments `Σx, Σy, Σx², Σxy, Σy²`.
+struct Tree {
+    nodes: Vec<Node>,
     mom: Vec<[u64; 5]>,
-    node: Vec<u32>,
+}
+
+/// Union-find state of one pixel: `parent` is `NONE` until the pixel is added; `size` and
+/// `node` (its latest tree node) are meaningful at roots. One record per pixel, so a neighbour
+/// test, a find step and a union read one cache line each.
+#[derive(Debug, Clone, Copy)]
+struct Cell {
+    parent: u32,
+    size: u32,
+    node: u32,
+}
+
+/// Per-pixel union-find state, and the moments of each root.
+struct Forest {
+    cells: Vec<Cell>,
+    mom: Vec<[u64; 5]>,
 }
 
 impl Forest {
+    fn parent(&self, i: u32) -> u32 {
+        self.cells.get(i as usize).map_or(i, |c| c.parent)
+    }
+
+    fn added(&self, i: usize) -> bool {
+        self.cells.get(i).is_some_and(|c| c.parent != NONE)
+    }
+
     fn size(&self, r: u32) -> u32 {
-        self.size.get(r as usize).copied().unwrap_or(0)
+        self.cells.get(r as usize).map_or(0, |c| c.size)
+    }
+
+    /// Root of `i` with path halving.
+    fn find(&mut self, mut i: u32) -> u32 {
+        loop {
+            let p = self.parent(i);
+            if p == i {
+                return i;
+            }
+            let gp = self.parent(p);
+            if let Some(c) = self.cells.get_mut(i as usize) {
+                c.parent = gp;
+            }
+            i = gp;
+        }
+    }
+
+    /// Adds pixel `i` at `(x, y)` as a component of its own.
+    fn add(&mut self, i: usize, x: u64, y: u64) {
+        if let Some(c) = self.cells.get_mut(i) {
+            *c = Cell {
+                parent: i as u32,
+                size: 1,
+                node: NONE,
+            };
+        }
+        if let Some(m) = self.mom.get_mut(i) {
+            *m = [x, y, x * x, x * y, y * y];
+        }
     }
 
     /// Unites the roots `a` and `b` (by size); returns the new root.
@@ -104,15 +139,13 @@ impl Forest {
         } else {
             (b, a)
         };
-        let (ss, ms) = (
-            self.size(small),
-            self.mom.get(small as usize).copied().unwrap_or_default(),
-        );
-        if let Some(p) = self.parent.get_mut(small as usize) {
-            *p = big;
+        let ss = self.size(small);
+        let ms = self.mom.get(small as usize).copied().unwrap_or_default();
+        if let Some(c) = self.cells.get_mut(small as usize) {
+            c.parent = big;
         }
-        if let Some(s) = self.size.get_mut(big as usize) {
-            *s += ss;
+        if let Some(c) = self.cells.get_mut(big as usize) {
+            c.size += ss;
         }
         if let Some(m) = self.mom.get_mut(big as usize) {
             for (m, s) in m.iter_mut().zip(ms) {
@@ -124,14 +157,14 @@ impl Forest {
 
     /// Takes the latest node of root `r` (if any), leaving none.
     fn take_node(&mut self, r: u32) -> Option<u32> {
-        let slot = self.node.get_mut(r as usize)?;
-        let n = std::mem::replace(slot, NONE);
+        let c = self.cells.get_mut(r as usize)?;
+        let n = std::mem::replace(&mut c.node, NONE);
         (n != NONE).then_some(n)
     }
 }
 
 /// Builds the component tree of `levels` (pixels join in increasing level).
-fn component_tree(levels: &[u8], w: usize, h: usize) -> Vec<Node> {
+fn component_tree(levels: &[u8], w: usize, h: usize) -> Tree {
     let n = w * h;
     let mut start = [0usize; 257];
     for &v in levels {
@@ -156,41 +189,44 @@ fn component_tree(levels: &[u8], w: usize, h: usize) -> Vec<Node> {
         }
     }
     let mut f = Forest {
-        parent: (0..n as u32).collect(),
-        added: vec![false; n],
-        size: vec![0; n],
+        cells: vec![
+            Cell {
+                parent: NONE,
+                size: 0,
+                node: NONE,
+            };
+            n
+        ],
         mom: vec![[0; 5]; n],
-        node: vec![NONE; n],
     };
-    let mut nodes: Vec<Node> = Vec::new();
+    let mut tree = Tree {
+        nodes: Vec::new(),
+        mom: Vec::new(),
+    };
+    let mut orphans: Vec<(u32, u32)> = Vec::new();
     for (g, bounds) in start.windows(2).enumerate() {
         let pixels = match bounds {
             [a, b] => order.get(*a..*b).unwrap_or(&[]),
             _ => &[],
         };
-        let mut orphans: Vec<(u32, u32)> = Vec::new();
+        orphans.clear();
         for &pix in pixels {
             let i = pix as usize;
             let (x, y) = (i % w, i / w);
-            let (xu, yu) = (x as u64, y as u64);
-            if let (Some(a), Some(s), Some(m)) =
-                (f.added.get_mut(i), f.size.get_mut(i), f.mom.get_mut(i))
-            {
-                *a = true;
-                *s = 1;
-                *m = [xu, yu, xu * xu, xu * yu, yu * yu];
-            }
+            f.add(i, x as u64, y as u64);
             let neighbours = [
                 (x > 0).then(|| i - 1),
                 (x + 1 < w).then(|| i + 1),
                 (y > 0).then(|| i - w),
                 (y + 1 < h).then(|| i + w),
             ];
+            // The root of `pix`'s component, kept across its neighbours (a union returns it).
+            let mut a = pix;
             for q in neighbours.into_iter().flatten() {
-                if !f.added.get(q).copied().unwrap_or(false) {
+                if !f.added(q) {
                     continue;
                 }
-                let (a, b) = (find(&mut f.parent, pix), find(&mut f.parent, q as u32));
+                let b = f.find(q as u32);
                 if a == b {
                     continue;
                 }
@@ -199,37 +235,42 @@ fn component_tree(levels: &[u8], w: usize, h: usize) -> Vec<Node> {
                         orphans.push((nd, pix));
                     }
                 }
-                f.union(a, b);
+                a = f.union(a, b);
             }
         }
         for &pix in pixels {
-            let r = find(&mut f.parent, pix);
-            if let Some(slot) = f.node.get_mut(r as usize) {
-                if *slot == NONE {
-                    *slot = nodes.len() as u32;
-                    nodes.push(Node {
-                        level: g as u8,
-                        size: f.size.get(r as usize).copied().unwrap_or(0),
+            let r = f.find(pix);
+            let (size, mom) = (
+                f.size(r),
+                f.mom.get(r as usize).copied().unwrap_or_default(),
+            );
+            if let Some(c) = f.cells.get_mut(r as usize) {
+                if c.node == NONE {
+                    c.node = tree.nodes.len() as u32;
+                    tree.nodes.push(Node {
+                        size,
                         parent: NONE,
-                        mom: f.mom.get(r as usize).copied().unwrap_or_default(),
+                        level: g as u8,
                     });
+                    tree.mom.push(mom);
                 }
             }
         }
-        for (child, pix) in orphans {
-            let r = find(&mut f.parent, pix);
-            let p = f.node.get(r as usize).copied().unwrap_or(NONE);
-            if let Some(c) = nodes.get_mut(child as usize) {
+        for &(child, pix) in &orphans {
+            let r = f.find(pix);
+            let p = f.cells.get(r as usize).map_or(NONE, |c| c.node);
+            if let Some(c) = tree.nodes.get_mut(child as usize) {
                 c.parent = p;
             }
         }
     }
-    nodes
+    tree
 }
 
 /// Stable regions of one polarity.
 fn pass(levels: &[u8], w: usize, h: usize, bright: bool, p: &MserParams) -> Vec<Region> {
-    let nodes = component_tree(levels, w, h);
+    let tree = component_tree(levels, w, h);
+    let nodes = &tree.nodes;
     let get = |i: u32| nodes.get(i as usize);
     let mut largest = vec![NONE; nodes.len()];
     for (i, nd) in nodes.iter().enumerate() {
@@ -305,16 +346,16 @@ fn pass(levels: &[u8], w: usize, h: usize, bright: bool, p: &MserParams) -> Vec<
     }
     nodes
         .iter()
-        .zip(&stable)
-        .zip(&var)
-        .filter(|((_, &s), _)| s)
-        .map(|((nd, _), &v)| region(nd, bright, v))
+        .zip(&tree.mom)
+        .zip(stable.iter().zip(&var))
+        .filter(|(_, (&s, _))| s)
+        .map(|((nd, mom), (_, &v))| region(nd, mom, bright, v))
         .collect()
 }
 
-fn region(nd: &Node, bright: bool, variation: f32) -> Region {
+fn region(nd: &Node, mom: &[u64; 5], bright: bool, variation: f32) -> Region {
     let n = f64::from(nd.size);
-    let [sx, sy, sxx, sxy, syy] = nd.mom.map(|m| m as f64);
+    let [sx, sy, sxx, sxy, syy] = mom.map(|m| m as f64);
     let (mx, my) = (sx / n, sy / n);
     Region {
         x: mx,

@@ -29,10 +29,10 @@ pub fn radial_spectrum(img: &[f32], w: usize, h: usize, bands: usize) -> RadialS
     let values: Vec<f64> = img.iter().map(|&v| f64::from(v)).collect();
     let (data, _) = hann_fft(&values, w, h);
     let (mut sum, mut cnt) = (vec![0.0; bands], vec![0usize; bands]);
+    let fxs: Vec<f64> = (0..w).map(|x| dft_frequency(x, w)).collect();
     for y in 0..h {
         let fy = dft_frequency(y, h);
-        for x in 0..w {
-            let fx = dft_frequency(x, w);
+        for (x, &fx) in fxs.iter().enumerate() {
             let f = fx.hypot(fy);
             if f == 0.0 || f > 0.5 {
                 continue;
@@ -55,15 +55,20 @@ pub fn radial_spectrum(img: &[f32], w: usize, h: usize, bands: usize) -> RadialS
 /// `|F|² / Σ window²` then estimates the power per sample).
 pub(crate) fn hann_fft(values: &[f64], w: usize, h: usize) -> (Vec<Complex<f64>>, f64) {
     let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
-    let hann = |i: usize, n: usize| {
-        0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (n.max(2) - 1) as f64).cos()
+    let hann = |n: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| {
+                0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (n.max(2) - 1) as f64).cos()
+            })
+            .collect()
     };
+    let (hx, hy) = (hann(w), hann(h));
     let mut energy = 0.0;
     let mut data: Vec<Complex<f64>> = values
         .iter()
         .enumerate()
         .map(|(i, v)| {
-            let win = hann(i % w, w) * hann(i / w, h);
+            let win = hx[i % w] * hy[i / w];
             energy += win * win;
             Complex::new((v - mean) * win, 0.0)
         })
@@ -86,19 +91,25 @@ pub(crate) fn fft2(data: &mut [Complex<f64>], w: usize, h: usize, inverse: bool)
             p.plan_fft_forward(n)
         }
     };
-    let row = plan(&mut planner, w);
-    for r in data.chunks_exact_mut(w) {
-        row.process(r);
-    }
-    let col = plan(&mut planner, h);
-    let mut column = vec![Complex::new(0.0, 0.0); h];
-    for x in 0..w {
-        for y in 0..h {
-            column[y] = data[y * w + x];
-        }
-        col.process(&mut column);
-        for y in 0..h {
-            data[y * w + x] = column[y];
+    // Rows in place, then the columns as the rows of the transpose: contiguous transforms
+    // instead of a strided gather per column (the same transforms, so the same values).
+    plan(&mut planner, w).process(data);
+    let mut columns = vec![Complex::new(0.0, 0.0); w * h];
+    transpose(data, &mut columns, w, h);
+    plan(&mut planner, h).process(&mut columns);
+    transpose(&columns, data, h, w);
+}
+
+/// `dst` (`h x w`, row-major) = the transpose of `src` (`w x h`), in cache-sized tiles.
+fn transpose(src: &[Complex<f64>], dst: &mut [Complex<f64>], w: usize, h: usize) {
+    const TILE: usize = 32;
+    for y0 in (0..h).step_by(TILE) {
+        for x0 in (0..w).step_by(TILE) {
+            for y in y0..(y0 + TILE).min(h) {
+                for x in x0..(x0 + TILE).min(w) {
+                    dst[x * h + y] = src[y * w + x];
+                }
+            }
         }
     }
 }
