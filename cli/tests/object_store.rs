@@ -3,6 +3,8 @@
 //! its grace period) work there; refused credentials are named and nothing is written.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::process::{Command, Output};
 
 use regolith_tests::moto::MotoServer;
@@ -34,23 +36,8 @@ fn every_db_command_works_on_s3() {
     s3.create_bucket("terrain").unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let camp = tmp.path().join("campaign");
+    common::generate_mini(&camp, 3);
     let camp = camp.to_str().unwrap();
-    ok(&regolith(
-        &s3,
-        &[
-            "-q",
-            "corpus",
-            "generate",
-            "--preset",
-            "mini",
-            "--seed",
-            "3",
-            "--renderer",
-            "model",
-            "--out",
-            camp,
-        ],
-    ));
     let url = "s3://terrain/surveys/mini";
     let remote = json(&regolith(
         &s3,
@@ -152,22 +139,7 @@ fn refused_credentials_fail_compile_before_writing() {
     s3.create_bucket("locked").unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let camp = tmp.path().join("campaign");
-    ok(&regolith(
-        &s3,
-        &[
-            "-q",
-            "corpus",
-            "generate",
-            "--preset",
-            "mini",
-            "--seed",
-            "3",
-            "--renderer",
-            "model",
-            "--out",
-            camp.to_str().unwrap(),
-        ],
-    ));
+    common::generate_mini(&camp, 3);
     let out = regolith(
         &s3,
         &["compile", camp.to_str().unwrap(), "--db", "s3://locked/db"],
