@@ -7,7 +7,7 @@
 //! ±0.1° / ±3 mm per axis, shadows ±3°) and how many errors lay within twice the standard
 //! error the workflow reported (about 95 % should, if that uncertainty is honest).
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN] [ENTRY]`
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN] [ENTRY] [FRAMES]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
 //! locations per campaign, default the preset's 2, `-` for it, `test` for each case's in the
 //! hidden-effect test (`gap_case::test_captures`: four for a distortion and a pose bias beside
@@ -16,13 +16,17 @@
 //! comma-separated hidden-effect parameters set rather than drawn, e.g. `gamma.gamma=1.15`, or
 //! `-`; `TERRAIN`: `truth` to run on the campaign's true terrain instead of the laser entry,
 //! `truth-albedo` for the entry's heights with the true albedo, default `entry`; `ENTRY`: the
-//! entry to run on, default `laser/0.01`, e.g. `sfm/0.02`).
+//! entry to run on, default `laser/0.01`, e.g. `sfm/0.02`; `FRAMES`: who makes the "real"
+//! frames, `model` (default: the validator's own model) or a Mitsuba render cache folder, e.g.
+//! `corpus/renders` (`+` after it renders the shots it lacks: `/tmp/renders+`)).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use regolith_tests::gap_case::{cases, run_case, test_captures, Confusion, Setup, TerrainChoice};
+use regolith_tests::gap_case::{
+    cases, run_case, test_captures, Confusion, Frames, Setup, TerrainChoice,
+};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -51,7 +55,14 @@ fn main() {
         terrain: args.get(6).map_or(TerrainChoice::Entry, |s| {
             TerrainChoice::parse(s).expect("TERRAIN: entry, truth or truth-albedo")
         }),
-        entry: args.get(7).cloned(),
+        entry: args.get(7).filter(|s| *s != "-").cloned(),
+        frames: match args.get(8).map(String::as_str) {
+            None | Some("model" | "-") => Frames::Model,
+            Some(dir) => Frames::Mitsuba {
+                renders: dir.trim_end_matches('+').into(),
+                render_missing: dir.ends_with('+'),
+            },
+        },
     };
     if let Some(only) = args.get(2).filter(|s| *s != "all") {
         let only: Vec<&str> = only.split(',').collect();

@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
 
+use regolith_corpus::captures::physical::{PhysicalCaptures, PhysicalOptions};
 use regolith_corpus::effects::{apply_param, HiddenSpec};
 use regolith_corpus::presets::{Preset, PresetConfig};
 use regolith_corpus::terrain::Terrain;
@@ -278,6 +279,49 @@ pub struct Setup {
     /// The entry the workflow looks at, `None` for [`DEFAULT_ENTRY`]; mini also compiles
     /// `laser/0.02` and `sfm/0.02` (the reconstruction's heights under its vertex colours).
     pub entry: Option<String>,
+    /// Who makes the campaign's NavCam frames: the validator's own model (default, for the
+    /// fitting code's unit proof) or Mitsuba through the corpus's camera.
+    pub frames: Frames,
+}
+
+/// Who makes a case's "real" frames.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum Frames {
+    /// The validator's renderer and sensor model (`--renderer model`): a residual is a
+    /// catalogue effect by construction.
+    #[default]
+    Model,
+    /// Mitsuba 3 through the corpus's camera (`--renderer mitsuba`), from the render cache
+    /// `renders`; with `render_missing`, shots not in it are rendered (Mitsuba installed,
+    /// minutes a shot), else a missing one fails the case.
+    Mitsuba {
+        /// The render cache folder (the repository's is `corpus/renders`).
+        renders: std::path::PathBuf,
+        /// Render what the cache lacks.
+        render_missing: bool,
+    },
+}
+
+impl Frames {
+    /// The renderer of a campaign's frames.
+    fn renderer(&self) -> Box<dyn regolith_corpus::captures::CaptureRenderer> {
+        match self {
+            Frames::Model => Box::new(regolith_model_captures::ModelCaptures),
+            Frames::Mitsuba {
+                renders,
+                render_missing,
+            } => {
+                let driver = render_missing.then(|| {
+                    Path::new(env!("CARGO_MANIFEST_DIR"))
+                        .join("../tools/render/mitsuba_captures.py")
+                });
+                Box::new(PhysicalCaptures::new(PhysicalOptions::new(
+                    renders.clone(),
+                    driver,
+                )))
+            }
+        }
+    }
 }
 
 /// What a case renders: the compiled entry or the campaign's truth.
@@ -327,13 +371,7 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         captures: setup.captures,
         hidden: specs,
     };
-    generate(
-        &opts,
-        &camp,
-        &regolith_model_captures::ModelCaptures,
-        &|_, _| {},
-    )
-    .unwrap();
+    generate(&opts, &camp, setup.frames.renderer().as_ref(), &|_, _| {}).unwrap();
     let c = regolith_compiler::ingest::campaign::load(&camp).unwrap();
     let writer = Writer::create_or_open(dir.join("db")).unwrap();
     regolith_compiler::compile::compile(
