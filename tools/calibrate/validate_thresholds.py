@@ -10,10 +10,10 @@ real-vs-real ceiling per detector, with the chance part of the render's one-dire
 the last calibration are quoted there.
 
     python3 tools/calibrate/validate_thresholds.py --seeds 311,312,313 --out /tmp/calib \
-        [--bin target/release/regolith] [--renderer mitsuba|model]
+        --renders corpus/renders-train [--bin target/release/regolith] [--renderer mitsuba|model]
 
-Seeds 301 and 302 are the held-out test seeds of the independent captures (corpus/renders/):
-never calibrate on them.
+Seeds 311-313 are the training seeds (their renders: corpus/renders-train/); seeds 301-303 are
+the held-out test seeds of the independent captures (corpus/renders/): never calibrate on them.
 """
 import argparse
 import json
@@ -41,7 +41,7 @@ def main():
     ap.add_argument("--out", required=True, type=pathlib.Path)
     ap.add_argument("--bin", default="target/release/regolith")
     ap.add_argument("--renders", default=None,
-                    help="render cache folder for Mitsuba (e.g. corpus/renders for seeds 301, 302)")
+                    help="render cache folder for Mitsuba (corpus/renders-train for the training seeds 311-313, corpus/renders for the test seeds 301-303)")
     ap.add_argument("--renderer", default="mitsuba", choices=["mitsuba", "model"],
                     help="who renders the captures: Mitsuba 3 (independent of the validator; "
                          "default) or the validator's own forward model (the calibration before "

@@ -3,8 +3,13 @@
 # campaigns the tests regenerate without a renderer.
 #
 #   bash tools/render/reference.sh [REGOLITH_BINARY]
+#   SET=train bash tools/render/reference.sh    # the training seeds into corpus/renders-train
 #
-# For each reference seed it generates the mini campaigns with nothing hidden, with each
+# SET=test (default): the held-out test seeds 301-303 into corpus/renders (what the tests
+# regenerate); SET=train: the calibration seeds 311-313 into corpus/renders-train (what
+# tools/calibrate/ and the gap_matrix example calibrate on; no test reads them).
+#
+# For each seed it generates the mini campaigns with nothing hidden, with each
 # catalogue effect and with the three pairs, all with --renderer mitsuba --renders corpus/renders.
 # Renders already in the cache are reused (image effects act after the render, so only the plain
 # scene, a moved lamp (shadows) and a moved camera (pose-bias) are rendered); missing ones are
@@ -15,12 +20,15 @@ set -euo pipefail
 
 here=$(cd "$(dirname "$0")/../.." && pwd)
 bin=${1:-$here/target/release/regolith}
-renders=$here/corpus/renders
+case ${SET:-test} in
+    test) renders=$here/corpus/renders; seeds="301 302 303" ;;
+    train) renders=$here/corpus/renders-train; seeds="311 312 313" ;;
+    *) echo "SET must be test or train" >&2; exit 2 ;;
+esac
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 
-# The seeds, cases and sample count are also those of tests/tests/corpus/physical.rs.
-seeds="301 302"
+# The test seeds, cases and sample count are also those of tests/tests/corpus/physical.rs.
 spp=${SPP:-128}
 cases="none vignetting blur noise gamma exposure shadows distortion pose-bias texture-lowpass
 vignetting,exposure blur,distortion shadows,gamma"
