@@ -92,6 +92,7 @@ fn mesh_entry_renders_like_its_heightfield_and_is_certified() {
         shadows: true,
         supersample: 1,
         filter_textures: true,
+        adaptive: false,
     };
     let (mut both, mut only_hf, mut only_mesh) = (0usize, 0usize, 0usize);
     let (mut sum_abs, mut depth_err): (f64, Vec<f64>) = (0.0, Vec::new());

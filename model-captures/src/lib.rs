@@ -57,6 +57,7 @@ impl CaptureRenderer for ModelCaptures {
             supersample: scene.cfg.supersample,
             // Point-sampled true albedo: the corpus v1 camera.
             filter_textures: false,
+            adaptive: false,
         });
         let mut out = Vec::with_capacity(shots.len());
         for (i, shot) in shots.iter().enumerate() {

@@ -36,6 +36,7 @@ fn main() {
                 shadows: false,
                 supersample: 2,
                 filter_textures: true,
+                adaptive: false,
             },
         );
         let real = decode_grey_png(&img.data, 32_768).unwrap();

@@ -175,6 +175,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
                 shadows: false,
                 supersample: 1,
                 filter_textures: true,
+                adaptive: false,
             },
         ),
         (
@@ -184,6 +185,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
                 shadows: false,
                 supersample: 1,
                 filter_textures: true,
+                adaptive: false,
             },
         ),
         (
@@ -193,6 +195,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
                 shadows: true,
                 supersample: 1,
                 filter_textures: true,
+                adaptive: false,
             },
         ),
     ] {
@@ -216,6 +219,7 @@ fn report(label: &str, g: &Geometry, runs: usize) {
         shadows: true,
         supersample: 1,
         filter_textures: true,
+        adaptive: false,
     };
     let hits = scene.primary_hits(&view(), &opts);
     let (ms, _, cpu, _) = time_runs(runs, || scene.relight(&hits, &LIGHT, true));
@@ -289,6 +293,7 @@ fn export_peer(dir: &std::path::Path, g: &Geometry) -> std::io::Result<()> {
             shadows: false,
             supersample: 1,
             filter_textures: true,
+            adaptive: false,
         },
     );
     let bytes = |xs: &[f32]| xs.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();

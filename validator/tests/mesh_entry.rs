@@ -152,6 +152,7 @@ const PLAIN: RenderOptions = RenderOptions {
     shadows: false,
     supersample: 1,
     filter_textures: true,
+    adaptive: false,
 };
 
 #[test]

@@ -15,6 +15,7 @@ const PLAIN: RenderOptions = RenderOptions {
     shadows: false,
     supersample: 1,
     filter_textures: true,
+    adaptive: false,
 };
 
 fn grid(w: usize, h: usize, cell: f64, f: impl Fn(f64, f64) -> f64) -> HeightGrid {
@@ -272,6 +273,7 @@ fn marker_lands_where_camera_model_projects_it_with_real_distortion() {
         shadows: false,
         supersample: 3,
         filter_textures: true,
+        adaptive: false,
     };
     let r = render(&g, &light(0.0, 90.0, 1.0), &view, &opts);
     let (mut sw, mut su, mut sv) = (0.0, 0.0, 0.0);
@@ -452,6 +454,7 @@ fn output_is_identical_for_one_and_two_threads() {
         shadows: true,
         supersample: 2,
         filter_textures: true,
+        adaptive: false,
     };
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -492,6 +495,7 @@ fn cached_camera_rays_give_the_bytes_of_a_fresh_scene() {
         shadows: false,
         supersample: n,
         filter_textures: true,
+        adaptive: false,
     };
     let fresh = |cam: &CameraModel, n: u32| bits(&Scene::new(&g).render(&l, &view(cam), &opts(n)));
     let scene = Scene::new(&g);
@@ -712,6 +716,7 @@ fn relit_hits_give_the_bytes_of_a_render() {
                 shadows,
                 supersample: n,
                 filter_textures: true,
+                adaptive: false,
             };
             let hits = scene.primary_hits(&view, &opts(false));
             let mut seen = Vec::new();
@@ -793,4 +798,93 @@ fn a_sphere_is_seen_shaded_and_casts_its_shadow_exactly() {
         let bad = Sphere { radius, ..ball };
         assert!(bad.hit(o, [0.0, 0.0, 1.0], 0.0, f64::INFINITY).is_none());
     }
+}
+
+/// Supersampling at edge pixels only (`RenderOptions::adaptive`): the ball's outline, its cast
+/// shadow's edge and the terrain's outline against the sky get every sample, so over flat,
+/// uniformly coloured ground the image is the fully supersampled one bit for bit; on the ball
+/// (a curved surface, shaded once per pixel) it stays within a small share of the radiance.
+/// Depth and mask are the centre ray's either way, and the bytes do not depend on the thread
+/// count.
+#[test]
+fn supersampling_at_edges_only_matches_full_supersampling_where_it_shows() {
+    let view = View::look_at(
+        CameraModel::pinhole(201, 161, 150.0, 150.0, 100.0, 80.0),
+        [2.0, -4.2, 1.6],
+        [2.0, -2.0, 0.0],
+    );
+    let g = heightfield(grid(41, 41, 0.1, |_, _| 0.0), 0.5);
+    let ball = Sphere {
+        centre: [2.0, -2.0, 0.2],
+        radius: 0.2,
+        albedo: 0.9,
+    };
+    let scene = Scene::new(&g).with_spheres(vec![ball]);
+    let l = light(0.0, 35.0, 0.25);
+    let full = RenderOptions {
+        shadows: true,
+        supersample: 2,
+        ..PLAIN
+    };
+    let edges = RenderOptions {
+        adaptive: true,
+        ..full
+    };
+    let a = scene.render(&l, &view, &full);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| scene.render(&l, &view, &edges))
+    };
+    let (b, b2) = (run(1), run(2));
+    assert_eq!(bits(&b), bits(&b2));
+    assert_eq!(b.mask, a.mask);
+    assert_eq!(
+        a.depth.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        b.depth.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+    // The view holds sky, ground in and out of the shadow, and the ball.
+    let lit = 0.5 * (0.25 + 0.75 * 35f64.to_radians().sin());
+    let shadowed = 0.5 * 0.25;
+    let count = |v: f64| {
+        a.radiance
+            .iter()
+            .filter(|r| (f64::from(**r) - v).abs() < 1e-6)
+            .count()
+    };
+    assert!(a.mask.contains(&0) && count(lit) > 1000 && count(shadowed) > 100);
+    let on_ball = |i: usize| {
+        let (c, r) = ((i % 201) as f64, (i / 201) as f64);
+        // Within 1.5 px of the ball's image (its hits are nearer than the ground's).
+        (-2i32..=2).any(|dc| {
+            (-2i32..=2).any(|dr| {
+                let (cc, rr) = (c + f64::from(dc), r + f64::from(dr));
+                (0.0..201.0).contains(&cc) && (0.0..161.0).contains(&rr) && {
+                    let j = rr as usize * 201 + cc as usize;
+                    let gd = plane_depth(&view, (0.0, 0.0, 0.0), cc, rr);
+                    f64::from(a.depth[j]) < gd - 1e-3
+                }
+            })
+        })
+    };
+    let (mut off_ball, mut ball_err, mut ball_px) = (0usize, 0.0f64, 0usize);
+    for i in 0..a.radiance.len() {
+        let d = (f64::from(a.radiance[i]) - f64::from(b.radiance[i])).abs();
+        if on_ball(i) {
+            ball_err += d;
+            ball_px += 1;
+        } else if d > 0.0 {
+            off_ball += 1;
+        }
+    }
+    assert_eq!(
+        off_ball, 0,
+        "ground and sky pixels differing from the full render"
+    );
+    assert!(
+        ball_px > 100 && ball_err / (ball_px as f64) < 0.01,
+        "{ball_err} over {ball_px}"
+    );
 }

@@ -21,6 +21,13 @@
 //!   case for rover cameras over a terrain texture) is sampled bilinearly exactly as without.
 //!   Heightfield albedo and mesh textures filter alike (a mesh triangle's texel size comes from
 //!   its uv and world areas), so a heightfield and its mesh still render alike.
+//! * **Samples per pixel**: `supersample = n` takes `n x n` stratified samples per pixel and
+//!   box-filters them; with [`RenderOptions::adaptive`] only edge pixels do — where a pixel's
+//!   centre ray sees other geometry, light or shading than a neighbour's (an occlusion edge, an
+//!   outline, a cast shadow's edge, a crease between facets) — and every other pixel is shaded
+//!   once from its centre ray with its texture filtered over the whole pixel: within one smooth
+//!   surface the texture filter does what the samples would. `validate` renders so, with 1.3
+//!   to 2.3 rays a pixel instead of 5 on the corpus's laser entries.
 //! * **Shading** is Lambertian with an ambient share (see [`shading`]):
 //!   `radiance = albedo * (ambient + (1 - ambient) * max(0, n·l) * visible)`, where `visible`
 //!   is 0 when a shadow ray toward the light hits the terrain (only with `shadows: true`).
@@ -166,6 +173,37 @@ pub struct RenderOptions {
     /// spans more than one texel; `false` point-samples them bilinearly (magnified textures
     /// are sampled the same way either way).
     pub filter_textures: bool,
+    /// With `supersample > 1`, take the `n x n` samples only at edge pixels — where a pixel's
+    /// centre ray sees other geometry, light or shading than a neighbour's (an occlusion edge,
+    /// the terrain's outline, a cast shadow's edge, a crease of more than one digital number)
+    /// — and elsewhere shade the centre ray once, its texture filtered over the whole pixel.
+    /// Not for [`Scene::primary_hits`], which keeps every sample.
+    pub adaptive: bool,
+}
+
+/// How densely a render samples its pixels: `n x n` samples at every pixel, or only at its
+/// edge pixels ([`RenderOptions::adaptive`]). A plain number is `Full`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sampling {
+    /// `n x n` samples at every pixel.
+    Full(u32),
+    /// `n x n` samples at edge pixels, one shaded sample elsewhere.
+    Edges(u32),
+}
+
+impl From<u32> for Sampling {
+    fn from(n: u32) -> Sampling {
+        Sampling::Full(n)
+    }
+}
+
+impl Sampling {
+    /// Samples per axis where the most are taken.
+    pub fn supersample(self) -> u32 {
+        match self {
+            Sampling::Full(n) | Sampling::Edges(n) => n,
+        }
+    }
 }
 
 impl Default for RenderOptions {
@@ -175,6 +213,7 @@ impl Default for RenderOptions {
             shadows: false,
             supersample: 1,
             filter_textures: true,
+            adaptive: false,
         }
     }
 }

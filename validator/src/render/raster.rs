@@ -27,6 +27,8 @@ const MESH_SHADOW_EPS: f64 = 1e-6;
 pub(crate) struct SurfaceSample {
     hit: Hit,
     albedo: f32,
+    /// What was hit: 0 the geometry, `i + 1` the scene's sphere `i`.
+    object: u32,
 }
 
 /// The first hits of every camera ray of one view (row-major, every sample of a pixel in turn,
@@ -75,6 +77,9 @@ pub(crate) fn render_scene(
 ) -> Rendered {
     let rays = CameraRays::new(scene, view, opts);
     let shader = Shader::new(scene, light, opts.shadows);
+    if opts.adaptive && rays.n > 1 {
+        return assemble_at_edges(scene, &rays, &shader);
+    }
     assemble(
         rays.w,
         rays.h,
@@ -82,6 +87,159 @@ pub(crate) fn render_scene(
         |c, r, k| rays.first_hit(scene, c, r, k),
         |s| shader.shade(s),
     )
+}
+
+/// Range ratio to the pixel's angular size past which two neighbouring pixel centres are not
+/// on one surface: `tan 80°`. Two centres on one surface seen at incidence θ differ in range by
+/// about `t · Δ · tan θ` (`Δ` the pixel's angle); more than a surface seen at 80° shows is an
+/// occlusion edge, or ground so oblique that one sample misrepresents the pixel.
+const EDGE_RANGE_SLOPE: f64 = 5.671_281_819_617_709;
+
+/// Largest radiance difference between neighbouring pixel centres from their shading alone
+/// (normal and light, at their mean albedo) that leaves a pixel at one sample: one digital
+/// number at unit exposure (radiance 1 = 255 DN). Where two facets meet inside a pixel the
+/// full samples' mean lies between the two sides' values, so one sample is off by at most this.
+const SHADING_STEP: f64 = 1.0 / 255.0;
+
+/// What the edge test of [`assemble_at_edges`] keeps of a pixel centre's ray.
+#[derive(Clone, Copy)]
+struct Centre {
+    /// Ray parameter of the hit, `NaN` for a miss.
+    t: f64,
+    /// Radiance shaded from this one sample (its texture filtered over the whole pixel).
+    radiance: f64,
+    /// In the cast shadow of the light.
+    shadowed: bool,
+    /// What was hit ([`SurfaceSample::object`]).
+    object: u32,
+    /// Albedo of the hit.
+    albedo: f64,
+    /// Its radiance per unit albedo: what the light and the surface's normal make of it.
+    shading: f64,
+}
+
+impl Centre {
+    /// The centre ray's hit `s` (`None`: a miss) shaded by `shader`.
+    fn of(s: Option<&SurfaceSample>, shader: &Shader<'_, '_>) -> Centre {
+        match s {
+            Some(s) => {
+                let (radiance, shadowed) = shader.shade_lit(s);
+                let albedo = f64::from(s.albedo);
+                Centre {
+                    t: s.hit.t,
+                    radiance,
+                    shadowed,
+                    object: s.object,
+                    albedo,
+                    shading: if albedo > 0.0 { radiance / albedo } else { 0.0 },
+                }
+            }
+            None => Centre {
+                t: f64::NAN,
+                radiance: 0.0,
+                shadowed: false,
+                object: 0,
+                albedo: 0.0,
+                shading: 0.0,
+            },
+        }
+    }
+}
+
+/// The image with `n x n` samples only where they change it (`RenderOptions::adaptive`:
+/// adaptive supersampling on what the samples see, not on the texture, which the mip filter
+/// already integrates): every pixel's centre ray is traced once, its texture filtered over
+/// the whole pixel's footprint, and shaded once; a pixel whose centre differs from a
+/// 4-neighbour's in what it sees (surface or nothing, another object, a range jump past
+/// [`EDGE_RANGE_SLOPE`], lit or in cast shadow, a shading step past [`SHADING_STEP`]) is an
+/// edge pixel and gets the plain mean of its `n x n` samples, as [`assemble`] gives every
+/// pixel. A straight edge that separates any sample of a pixel from its centre also
+/// separates the centre from a 4-neighbour's, so such an edge is never missed. Depth and mask
+/// come from the centre ray as there. Each pixel is a pure function of its own and its
+/// neighbours' rays.
+fn assemble_at_edges(
+    scene: &Scene<'_>,
+    rays: &CameraRays<'_>,
+    shader: &Shader<'_, '_>,
+) -> Rendered {
+    let (w, h, n) = (rays.w, rays.h, rays.n);
+    let centre_k = if n.is_multiple_of(2) {
+        (n * n) as usize
+    } else {
+        ((n / 2) * n + n / 2) as usize
+    };
+    let pixel_spread = rays.spread * f64::from(n);
+    let centres: Vec<Centre> = (0..h)
+        .into_par_iter()
+        .map(|r| {
+            (0..w)
+                .map(|c| {
+                    let s = rays.hit_with_spread(scene, c, r, centre_k, pixel_spread);
+                    Centre::of(s.as_ref(), shader)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect::<Vec<_>>()
+        .concat();
+    let pixel_angle = 2.0 / (rays.cam.fx.abs() + rays.cam.fy.abs());
+    let apart = |a: &Centre, b: &Centre| -> bool {
+        match (a.t.is_nan(), b.t.is_nan()) {
+            (true, true) => false,
+            (false, false) => {
+                a.shadowed != b.shadowed
+                    || a.object != b.object
+                    || 0.5 * (a.albedo + b.albedo) * (a.shading - b.shading).abs() > SHADING_STEP
+                    || (a.t - b.t).abs() > EDGE_RANGE_SLOPE * pixel_angle * a.t.min(b.t)
+            }
+            _ => true,
+        }
+    };
+    let rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)> = (0..h)
+        .into_par_iter()
+        .map(|r| {
+            let mut rad = vec![0f32; w];
+            let mut depth = vec![f32::NAN; w];
+            let mut mask = vec![0u8; w];
+            for c in 0..w {
+                let Some(me) = centres.get(r * w + c) else {
+                    continue;
+                };
+                let neighbours = [
+                    (c > 0).then(|| r * w + c - 1),
+                    (c + 1 < w).then(|| r * w + c + 1),
+                    (r > 0).then(|| (r - 1) * w + c),
+                    (r + 1 < h).then(|| (r + 1) * w + c),
+                ];
+                let edge = neighbours
+                    .into_iter()
+                    .flatten()
+                    .filter_map(|i| centres.get(i))
+                    .any(|o| apart(me, o));
+                let value = if edge {
+                    let sum: f64 = (0..(n * n) as usize)
+                        .map(|k| {
+                            rays.first_hit(scene, c, r, k)
+                                .map_or(0.0, |s| shader.shade(&s))
+                        })
+                        .sum();
+                    sum / f64::from(n * n)
+                } else {
+                    me.radiance
+                };
+                if let (Some(px), Some(d), Some(m)) =
+                    (rad.get_mut(c), depth.get_mut(c), mask.get_mut(c))
+                {
+                    *px = value as f32;
+                    if !me.t.is_nan() {
+                        *d = me.t as f32;
+                        *m = 255;
+                    }
+                }
+            }
+            (rad, depth, mask)
+        })
+        .collect();
+    collect_rows(w, h, rows)
 }
 
 /// `hits` shaded under `light` (cast shadows with `shadows`): byte for byte the render of the
@@ -162,11 +320,28 @@ impl<'c> CameraRays<'c> {
 
     /// The first hit of ray `k` of pixel `(c, r)`.
     fn first_hit(&self, scene: &Scene<'_>, c: usize, r: usize, k: usize) -> Option<SurfaceSample> {
+        self.hit_with_spread(scene, c, r, k, self.spread)
+    }
+
+    /// [`CameraRays::first_hit`] with its texture filtered as if the samples were `spread`
+    /// apart.
+    fn hit_with_spread(
+        &self,
+        scene: &Scene<'_>,
+        c: usize,
+        r: usize,
+        k: usize,
+        spread: f64,
+    ) -> Option<SurfaceSample> {
         let (x, y) = self.xy(c, r, k);
         let rot = &self.rot;
         let d = std::array::from_fn(|i| rot[i][0] * x + rot[i][1] * y + rot[i][2]);
-        let (hit, albedo) = trace(scene, self.centre, d, self.spread)?;
-        Some(SurfaceSample { hit, albedo })
+        let (hit, albedo, object) = trace(scene, self.centre, d, spread)?;
+        Some(SurfaceSample {
+            hit,
+            albedo,
+            object,
+        })
     }
 }
 
@@ -197,25 +372,25 @@ impl<'s, 'a> Shader<'s, 'a> {
 
     /// The radiance of `s`.
     fn shade(&self, s: &SurfaceSample) -> f64 {
+        self.shade_lit(s).0
+    }
+
+    /// The radiance of `s`, and whether it lies in the light's cast shadow.
+    fn shade_lit(&self, s: &SurfaceSample) -> (f64, bool) {
         let (hit, to_light) = (&s.hit, self.to_light);
         let n_dot_l: f64 = (0..3).map(|k| hit.normal[k] * to_light[k]).sum();
-        let visible = if self.shadows && n_dot_l > 0.0 {
+        let shadowed = self.shadows && n_dot_l > 0.0 && {
             let o = std::array::from_fn(|k| hit.point[k] + hit.normal[k] * self.eps);
-            if occluded(self.scene, o, to_light) {
-                0.0
-            } else {
-                1.0
-            }
-        } else {
-            1.0
+            occluded(self.scene, o, to_light)
         };
-        shade(
+        let radiance = shade(
             f64::from(s.albedo),
             self.ambient,
             hit.normal,
             to_light,
-            visible,
-        )
+            if shadowed { 0.0 } else { 1.0 },
+        );
+        (radiance, shadowed)
     }
 }
 
@@ -263,7 +438,11 @@ fn assemble(
             (rad, depth, mask)
         })
         .collect();
+    collect_rows(w, h, rows)
+}
 
+/// The image of rows of (radiance, depth, mask).
+fn collect_rows(w: usize, h: usize, rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)>) -> Rendered {
     let mut out = Rendered {
         width: w,
         height: h,
@@ -338,15 +517,15 @@ impl RayTable {
 
 /// The nearest hit and its albedo (filtered over the footprint of a sample `spread` wide in
 /// normalised image coordinates): the geometry's or a sphere's, whichever is nearer.
-fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hit, f32)> {
+/// The nearest hit, its albedo and what it belongs to (see [`SurfaceSample::object`]).
+fn trace(scene: &Scene<'_>, o: [f64; 3], d: [f64; 3], spread: f64) -> Option<(Hit, f32, u32)> {
     let ground = trace_geometry(scene, o, d, spread);
     let t_max = ground.map_or(f64::INFINITY, |(h, _)| h.t);
-    let ball = scene
-        .spheres
-        .iter()
-        .filter_map(|s| s.hit(o, d, 0.0, t_max).map(|h| (h, s.albedo)))
+    let ball = (1u32..)
+        .zip(&scene.spheres)
+        .filter_map(|(i, s)| s.hit(o, d, 0.0, t_max).map(|h| (h, s.albedo, i)))
         .min_by(|a, b| a.0.t.total_cmp(&b.0.t));
-    ball.or(ground)
+    ball.or(ground.map(|(h, a)| (h, a, 0)))
 }
 
 /// The nearest hit of the scene's geometry (spheres aside) and its albedo.

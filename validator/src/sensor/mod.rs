@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::{quat_from_axis_angle, Pose};
 
-use crate::render::{AlbedoGrid, Geometry, Light, RenderOptions};
+use crate::render::{AlbedoGrid, Geometry, Light, RenderOptions, Sampling};
 
 pub use blur::{gaussian_blur, kernel_radius};
 pub use image::quantise_u8;
@@ -202,11 +202,11 @@ impl SensorModel {
         light: &Light,
         calibrated: &CameraModel,
         at: &Placement,
-        supersample: u32,
+        sampling: impl Into<Sampling>,
         noise_seed: Option<u64>,
     ) -> SensorRender {
         let camera = self.camera(calibrated);
-        let (opts, light) = self.lighting(light, supersample);
+        let (opts, light) = self.lighting(light, sampling.into());
         let rendered = scene.render(
             &light,
             &crate::render::View {
@@ -228,7 +228,7 @@ impl SensorModel {
         at: &Placement,
         supersample: u32,
     ) -> crate::render::PrimaryHits {
-        let (opts, _) = self.render_options(&render_options(supersample));
+        let (opts, _) = self.render_options(&render_options(Sampling::Full(supersample)));
         scene.primary_hits(
             &crate::render::View {
                 camera: self.camera(calibrated),
@@ -249,15 +249,15 @@ impl SensorModel {
         calibrated: &CameraModel,
         noise_seed: Option<u64>,
     ) -> SensorRender {
-        let (opts, light) = self.lighting(light, 1);
+        let (opts, light) = self.lighting(light, Sampling::Full(1));
         let rendered = scene.relight(hits, &light, opts.shadows);
         self.finish(rendered, self.camera(calibrated), calibrated, noise_seed)
     }
 
-    /// The render options at `supersample` and the light of a render under `light`: a
+    /// The render options at `sampling` and the light of a render under `light`: a
     /// `shadows` effect casts shadows from its direction, with `light`'s ambient share.
-    fn lighting(&self, light: &Light, supersample: u32) -> (RenderOptions, Light) {
-        let (opts, shadow_light) = self.render_options(&render_options(supersample));
+    fn lighting(&self, light: &Light, sampling: Sampling) -> (RenderOptions, Light) {
+        let (opts, shadow_light) = self.render_options(&render_options(sampling));
         let light = match shadow_light {
             Some(l) => Light {
                 ambient: light.ambient,
@@ -303,13 +303,14 @@ impl SensorModel {
     }
 }
 
-/// The options of a sensor render at `supersample`, before the model's own (shadows).
-fn render_options(supersample: u32) -> RenderOptions {
+/// The options of a sensor render at `sampling`, before the model's own (shadows).
+fn render_options(sampling: Sampling) -> RenderOptions {
     RenderOptions {
         distort: true,
         shadows: false,
-        supersample,
+        supersample: sampling.supersample(),
         filter_textures: true,
+        adaptive: matches!(sampling, Sampling::Edges(_)),
     }
 }
 
