@@ -456,12 +456,10 @@ fn output_is_identical_for_one_and_two_threads() {
         filter_textures: true,
         adaptive: false,
     };
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| render(&g, &light(60.0, 25.0, 0.2), &view, &opts))
+    let run = |threads| {
+        on_threads(threads, || {
+            render(&g, &light(60.0, 25.0, 0.2), &view, &opts)
+        })
     };
     let (one, two) = (run(1), run(2));
     assert_eq!(bits(&one), bits(&two));
@@ -739,6 +737,27 @@ fn relit_hits_give_the_bytes_of_a_render() {
     }
 }
 
+/// Flat ground 4 m square (albedo 0.5) with a ball of radius 0.2 m (albedo 0.9) standing at its
+/// centre, (2, −2).
+fn ball_on_ground() -> (Geometry, Sphere) {
+    let g = heightfield(grid(41, 41, 0.1, |_, _| 0.0), 0.5);
+    let ball = Sphere {
+        centre: [2.0, -2.0, 0.2],
+        radius: 0.2,
+        albedo: 0.9,
+    };
+    (g, ball)
+}
+
+/// `f` run in a rayon pool of `threads` threads.
+fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
 #[test]
 fn a_sphere_is_seen_shaded_and_casts_its_shadow_exactly() {
     // A ball of radius 0.2 m on flat ground, seen from 5 m straight above, lit from +x at 45°.
@@ -747,12 +766,7 @@ fn a_sphere_is_seen_shaded_and_casts_its_shadow_exactly() {
         [2.0, -2.0, 5.0],
         [2.0, -2.0, 0.0],
     );
-    let g = heightfield(grid(41, 41, 0.1, |_, _| 0.0), 0.5);
-    let ball = Sphere {
-        centre: [2.0, -2.0, 0.2],
-        radius: 0.2,
-        albedo: 0.9,
-    };
+    let (g, ball) = ball_on_ground();
     let scene = Scene::new(&g).with_spheres(vec![ball]);
     let l = light(0.0, 45.0, 0.25);
     let opts = RenderOptions {
@@ -813,12 +827,7 @@ fn supersampling_at_edges_only_matches_full_supersampling_where_it_shows() {
         [2.0, -4.2, 1.6],
         [2.0, -2.0, 0.0],
     );
-    let g = heightfield(grid(41, 41, 0.1, |_, _| 0.0), 0.5);
-    let ball = Sphere {
-        centre: [2.0, -2.0, 0.2],
-        radius: 0.2,
-        albedo: 0.9,
-    };
+    let (g, ball) = ball_on_ground();
     let scene = Scene::new(&g).with_spheres(vec![ball]);
     let l = light(0.0, 35.0, 0.25);
     let full = RenderOptions {
@@ -831,13 +840,7 @@ fn supersampling_at_edges_only_matches_full_supersampling_where_it_shows() {
         ..full
     };
     let a = scene.render(&l, &view, &full);
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| scene.render(&l, &view, &edges))
-    };
+    let run = |threads| on_threads(threads, || scene.render(&l, &view, &edges));
     let (b, b2) = (run(1), run(2));
     assert_eq!(bits(&b), bits(&b2));
     assert_eq!(b.mask, a.mask);

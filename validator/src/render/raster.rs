@@ -194,52 +194,34 @@ fn assemble_at_edges(
             _ => true,
         }
     };
-    let rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)> = (0..h)
-        .into_par_iter()
-        .map(|r| {
-            let mut rad = vec![0f32; w];
-            let mut depth = vec![f32::NAN; w];
-            let mut mask = vec![0u8; w];
-            for c in 0..w {
-                let Some(me) = centres.get(r * w + c) else {
-                    continue;
-                };
-                let neighbours = [
-                    (c > 0).then(|| r * w + c - 1),
-                    (c + 1 < w).then(|| r * w + c + 1),
-                    (r > 0).then(|| (r - 1) * w + c),
-                    (r + 1 < h).then(|| (r + 1) * w + c),
-                ];
-                let edge = neighbours
-                    .into_iter()
-                    .flatten()
-                    .filter_map(|i| centres.get(i))
-                    .any(|o| apart(me, o));
-                let value = if edge {
-                    let sum: f64 = (0..(n * n) as usize)
-                        .map(|k| {
-                            rays.first_hit(scene, c, r, k)
-                                .map_or(0.0, |s| shader.shade(&s))
-                        })
-                        .sum();
-                    sum / f64::from(n * n)
-                } else {
-                    me.radiance
-                };
-                if let (Some(px), Some(d), Some(m)) =
-                    (rad.get_mut(c), depth.get_mut(c), mask.get_mut(c))
-                {
-                    *px = value as f32;
-                    if !me.t.is_nan() {
-                        *d = me.t as f32;
-                        *m = 255;
-                    }
-                }
-            }
-            (rad, depth, mask)
-        })
-        .collect();
-    collect_rows(w, h, rows)
+    image_of(w, h, |c, r| {
+        let Some(me) = centres.get(r * w + c) else {
+            return (0.0, None);
+        };
+        let neighbours = [
+            (c > 0).then(|| r * w + c - 1),
+            (c + 1 < w).then(|| r * w + c + 1),
+            (r > 0).then(|| (r - 1) * w + c),
+            (r + 1 < h).then(|| (r + 1) * w + c),
+        ];
+        let edge = neighbours
+            .into_iter()
+            .flatten()
+            .filter_map(|i| centres.get(i))
+            .any(|o| apart(me, o));
+        let value = if edge {
+            let sum: f64 = (0..(n * n) as usize)
+                .map(|k| {
+                    rays.first_hit(scene, c, r, k)
+                        .map_or(0.0, |s| shader.shade(&s))
+                })
+                .sum();
+            sum / f64::from(n * n)
+        } else {
+            me.radiance
+        };
+        (value, (!me.t.is_nan()).then_some(me.t))
+    })
 }
 
 /// `hits` shaded under `light` (cast shadows with `shadows`): byte for byte the render of the
@@ -406,43 +388,35 @@ fn assemble(
     shade: impl Fn(&SurfaceSample) -> f64 + Sync,
 ) -> Rendered {
     let odd_centre = (n % 2 == 1).then_some(((n / 2) * n + n / 2) as usize);
-    let rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)> = (0..h)
-        .into_par_iter()
-        .map(|r| {
-            let mut rad = vec![0f32; w];
-            let mut depth = vec![f32::NAN; w];
-            let mut mask = vec![0u8; w];
-            for c in 0..w {
-                let mut sum = 0.0;
-                let mut centre_depth = None;
-                for k in 0..(n * n) as usize {
-                    let s = hit(c, r, k);
-                    sum += s.as_ref().map_or(0.0, &shade);
-                    if Some(k) == odd_centre {
-                        centre_depth = s.map(|s| s.hit.t);
-                    }
-                }
-                if n.is_multiple_of(2) {
-                    centre_depth = hit(c, r, (n * n) as usize).map(|s| s.hit.t);
-                }
-                if let (Some(px), Some(d), Some(m)) =
-                    (rad.get_mut(c), depth.get_mut(c), mask.get_mut(c))
-                {
-                    *px = (sum / f64::from(n * n)) as f32;
-                    if let Some(z) = centre_depth {
-                        *d = z as f32;
-                        *m = 255;
-                    }
-                }
+    image_of(w, h, |c, r| {
+        let mut sum = 0.0;
+        let mut centre_depth = None;
+        for k in 0..(n * n) as usize {
+            let s = hit(c, r, k);
+            sum += s.as_ref().map_or(0.0, &shade);
+            if Some(k) == odd_centre {
+                centre_depth = s.map(|s| s.hit.t);
             }
-            (rad, depth, mask)
-        })
-        .collect();
-    collect_rows(w, h, rows)
+        }
+        if n.is_multiple_of(2) {
+            centre_depth = hit(c, r, (n * n) as usize).map(|s| s.hit.t);
+        }
+        (sum / f64::from(n * n), centre_depth)
+    })
 }
 
-/// The image of rows of (radiance, depth, mask).
-fn collect_rows(w: usize, h: usize, rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)>) -> Rendered {
+/// The `w x h` image whose pixel `(c, r)` is `pixel(c, r)`: its radiance and the depth of the
+/// surface its centre sees (`None`: nothing, depth `NaN` and mask 0). Rows in parallel, each
+/// pixel computed once, so the bytes do not depend on the thread count.
+fn image_of(
+    w: usize,
+    h: usize,
+    pixel: impl Fn(usize, usize) -> (f64, Option<f64>) + Sync,
+) -> Rendered {
+    let rows: Vec<Vec<(f64, Option<f64>)>> = (0..h)
+        .into_par_iter()
+        .map(|r| (0..w).map(|c| pixel(c, r)).collect())
+        .collect();
     let mut out = Rendered {
         width: w,
         height: h,
@@ -450,10 +424,10 @@ fn collect_rows(w: usize, h: usize, rows: Vec<(Vec<f32>, Vec<f32>, Vec<u8>)>) ->
         depth: Vec::with_capacity(w * h),
         mask: Vec::with_capacity(w * h),
     };
-    for (rad, depth, mask) in rows {
-        out.radiance.extend(rad);
-        out.depth.extend(depth);
-        out.mask.extend(mask);
+    for (value, centre) in rows.into_iter().flatten() {
+        out.radiance.push(value as f32);
+        out.depth.push(centre.map_or(f32::NAN, |t| t as f32));
+        out.mask.push(if centre.is_some() { 255 } else { 0 });
     }
     out
 }
