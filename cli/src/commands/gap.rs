@@ -103,6 +103,9 @@ pub fn run(
             }
             say!("  {:<12} evidence: {}", "", n.evidence);
         }
+        for w in &result.withheld {
+            say!("  {:<12} withheld: {}", w.effect, w.reason);
+        }
         let (b, a) = (&result.metrics_before, &result.metrics_after);
         say!(
             "  gap ({}): {:.3} -> {:.3}; geometric alignment residual {:.3} -> {:.3}; in cast shadow {:.2} -> {:.2} DN",

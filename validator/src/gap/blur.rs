@@ -34,6 +34,18 @@
 //! that integrates over its pixel area shows that area's 1/12 px² as blur the point-sampled
 //! simulation lacks, which is what it is.
 //!
+//! The skyline is a witness only where the real image shows, beyond the terrain's edge, what
+//! the render shows there: an unlit background (a sky, or a lab draped in black). A lit one —
+//! the testbed's rim, the hall's floor and walls, which no entry holds — makes the real edge a
+//! step between two lit surfaces (often a staircase: terrain, the rim's inner face, its top),
+//! wider than any PSF: on independently rendered lab campaigns (training seeds 311, 312, far
+//! side 27–44 DN above the render's sky) such edges read 0.6–1.6 px with nothing hidden. So a
+//! profile counts only when the real far side is no brighter than the render's sky plus the
+//! largest offset an exposure of the catalogue lifts a black background by
+//! ([`dark_background_dn`]); and a view counts only when most of its profiles do (a lit
+//! background has dark patches too: a shadowed floor, a dark wall panel). Without such a view
+//! the blur is not measured, and the run says so.
+//!
 //! Known limit: the blur is measured before the photometry, so the render is not clipped
 //! where a negative exposure offset clips a black sky in the real frames. The profiles whose
 //! transition falls below the clip show no sample between sky and terrain; their sky level is
@@ -52,6 +64,7 @@
 use rayon::prelude::*;
 
 use super::lsq::{solve, Problem};
+use crate::sensor::Effect;
 
 /// Half-height of an edge profile, px.
 pub const HALF: usize = 6;
@@ -131,11 +144,29 @@ fn step(t: f64, s: f64) -> f64 {
     0.5 * (1.0 + erf(t / (s * std::f64::consts::SQRT_2)))
 }
 
-/// The profile of the edge at `(x, y0)` in `img`, normalised by its own fit: `(y − c, (v − a)
-/// / b)` pairs of the uncensored samples, `None` when the step is too weak. The fit is a
-/// blurred step `a + b · step(y − c, s)` over ±[`HALF`] px; a censored sample (within
-/// [`CLIP_GUARD_DN`] of 0 or 255) counts only where the model crosses its bound.
-fn edge_samples(img: &[f32], w: usize, x: usize, y0: usize) -> Option<Vec<(f64, f64)>> {
+/// The most an unlit background's level can exceed the render's sky, DN: the largest offset of
+/// the catalogue's exposure range (what a black level lifts a black background by).
+pub fn dark_background_dn() -> f64 {
+    Effect::default_range("exposure")
+        .and_then(|r| r.iter().find(|p| p.name == "offset"))
+        .map_or(0.0, |p| 255.0 * p.max)
+}
+
+/// One edge profile: its normalised samples and the level of its far (sky) side.
+struct EdgeFit {
+    /// `(y − c, (v − a) / b)` pairs of the uncensored samples.
+    samples: Vec<(f64, f64)>,
+    /// The fitted level `a` beyond the edge, DN.
+    far_dn: f64,
+    /// The mean of the samples beyond the edge, DN.
+    far_mean_dn: f64,
+}
+
+/// The profile of the edge at `(x, y0)` in `img`, normalised by its own fit, `None` when the
+/// step is too weak. The fit is a blurred step `a + b · step(y − c, s)` over ±[`HALF`] px; a
+/// censored sample (within [`CLIP_GUARD_DN`] of 0 or 255) counts only where the model crosses
+/// its bound.
+fn edge_fit(img: &[f32], w: usize, x: usize, y0: usize) -> Option<EdgeFit> {
     let ys: Vec<f64> = (y0 - HALF..=y0 + HALF).map(|y| y as f64).collect();
     let vs: Vec<f64> = (y0 - HALF..=y0 + HALF)
         .map(|y| f64::from(img[y * w + x]))
@@ -171,14 +202,22 @@ fn edge_samples(img: &[f32], w: usize, x: usize, y0: usize) -> Option<Vec<(f64, 
         30,
     );
     let p = &sol.params;
-    Some(
-        ys.iter()
+    Some(EdgeFit {
+        samples: ys
+            .iter()
             .zip(&vs)
             .filter(|(_, &v)| v > floor && v < ceil)
             .map(|(y, v)| (y - p[2], (v - p[0]) / p[1]))
             .filter(|(t, _)| t.abs() <= 4.0)
             .collect(),
-    )
+        far_dn: p[0],
+        far_mean_dn: lo,
+    })
+}
+
+/// [`edge_fit`]'s normalised samples.
+fn edge_samples(img: &[f32], w: usize, x: usize, y0: usize) -> Option<Vec<(f64, f64)>> {
+    edge_fit(img, w, x, y0).map(|f| f.samples)
 }
 
 /// The σ of one pooled edge-spread function: the normalised samples of every profile (each at
@@ -233,34 +272,63 @@ struct Site {
 pub struct Skyline<'a> {
     views: &'a [EdgeView<'a>],
     sites: Vec<Site>,
+    /// Views with skyline profiles whose background most of them show lit.
+    pub lit_views: usize,
+    /// Profiles dropped for a lit background.
+    pub lit_profiles: usize,
 }
 
 impl<'a> Skyline<'a> {
     /// Finds every view's skyline profiles where both the real frames and the render show an
-    /// edge.
+    /// edge and the real background beyond it is unlit (see the module docs).
     pub fn sample(views: &'a [EdgeView<'a>]) -> Skyline<'a> {
-        let per_view: Vec<Vec<Site>> = views
+        let dark = dark_background_dn();
+        let per_view: Vec<(Vec<Site>, usize)> = views
             .par_iter()
             .enumerate()
             .map(|(i, v)| {
                 let plain = (v.render)(0.0);
-                skyline(v.mask, v.w, v.h)
+                let fits: Vec<(Site, bool)> = skyline(v.mask, v.w, v.h)
                     .into_par_iter()
                     .filter_map(|(x, y0)| {
-                        Some(Site {
+                        let real = edge_fit(v.real, v.w, x, y0)?;
+                        let render = edge_fit(&plain, v.w, x, y0)?;
+                        let unlit = real.far_dn - render.far_mean_dn <= dark;
+                        let site = Site {
                             view: i,
                             x,
                             y0,
-                            real: edge_samples(v.real, v.w, x, y0)?,
-                            render: edge_samples(&plain, v.w, x, y0)?,
-                        })
+                            real: real.samples,
+                            render: render.samples,
+                        };
+                        Some((site, unlit))
                     })
-                    .collect()
+                    .collect();
+                let unlit = fits.iter().filter(|(_, u)| *u).count();
+                let total = fits.len();
+                if 2 * unlit > total {
+                    (
+                        fits.into_iter()
+                            .filter(|(_, u)| *u)
+                            .map(|(s, _)| s)
+                            .collect(),
+                        total - unlit,
+                    )
+                } else {
+                    (Vec::new(), total)
+                }
             })
             .collect();
+        let lit_views = per_view
+            .iter()
+            .filter(|(s, d)| s.is_empty() && *d > 0)
+            .count();
+        let lit_profiles = per_view.iter().map(|(_, d)| d).sum();
         Skyline {
             views,
-            sites: per_view.into_iter().flatten().collect(),
+            sites: per_view.into_iter().flat_map(|(s, _)| s).collect(),
+            lit_views,
+            lit_profiles,
         }
     }
 
@@ -440,6 +508,37 @@ mod tests {
             let m = measured(&real, &render, &mask, w, h);
             assert!((m.sigma_px - 1.5).abs() < 0.1, "{gain} {offset}: {m:?}");
         }
+    }
+
+    #[test]
+    fn a_lit_background_is_no_witness_and_a_lifted_black_one_is() {
+        let (w, h) = (256, 96);
+        let (render, mask) = scene(w, h, true);
+        let blurred = |s: f64| gaussian_blur(&render, w, h, s);
+        let skyline_of = |real: &[f32]| {
+            let views = [EdgeView {
+                real,
+                mask: &mask,
+                w,
+                h,
+                render: &blurred,
+            }];
+            let s = Skyline::sample(&views);
+            (s.measure(&|_| true).map(|m| m.sigma_px), s.lit_views)
+        };
+        // A lit rim beyond the terrain (40 DN with a texture of its own): no witness.
+        let lit: Vec<f32> = render
+            .iter()
+            .zip(&mask)
+            .enumerate()
+            .map(|(i, (v, m))| if *m { *v } else { 40.0 + (i % 7) as f32 })
+            .collect();
+        assert_eq!(skyline_of(&gaussian_blur(&lit, w, h, 1.0)), (None, 1));
+        // A black background lifted by an exposure offset within the catalogue: measured.
+        let lifted = exposed(&gaussian_blur(&render, w, h, 1.0), 1.0, 0.04);
+        let (sigma, lit_views) = skyline_of(&lifted);
+        assert_eq!(lit_views, 0);
+        assert!((sigma.unwrap() - 1.0).abs() < 0.1, "{sigma:?}");
     }
 
     #[test]

@@ -179,6 +179,18 @@ fn param_map(e: &Effect) -> BTreeMap<String, f64> {
         .collect()
 }
 
+/// An effect the workflow could not measure or would not name on this data, and why (the
+/// evidence it lacked or that spoke against it).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Withheld {
+    /// Catalogue name.
+    pub effect: String,
+    /// `geometry`, `blur`, `photometry`, `shadows`, `texture` or `noise`.
+    pub stage: String,
+    /// Why.
+    pub reason: String,
+}
+
 /// One scored candidate subset of a stage.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ScoredCandidate {
@@ -199,6 +211,8 @@ pub struct GapResult {
     pub entry: String,
     /// The named effects, geometry first.
     pub named: Vec<Named>,
+    /// Effects not measured or not named for want of evidence, and why.
+    pub withheld: Vec<Withheld>,
     /// The headline figure: the one the named effects are read on ([`Figure::headline`]).
     pub gap_metric: Figure,
     /// Headline gap with the model before.
@@ -413,7 +427,8 @@ fn run_steps(
         geometry_stage(&ctx, &mut model, &preds_before, opts.min_share, &mut found),
     );
     steps.step();
-    blur_stage(&ctx, &mut model, opts.min_share, &mut found);
+    let mut withheld = Vec::new();
+    withheld.extend(blur_stage(&ctx, &mut model, opts.min_share, &mut found));
     steps.step();
     candidates.insert(
         "photometry".to_string(),
@@ -470,6 +485,7 @@ fn run_steps(
         gap_before: headline.of(&metrics_before),
         gap_after: headline.of(&metrics_after),
         named: found,
+        withheld,
         metrics_before,
         metrics_after,
         model_before,

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use crate::gap::blur::EdgeView;
 use crate::gap::context::{has, jackknife, named, upsert, Ctx};
 use crate::gap::views::GapView;
-use crate::gap::{blur, Named};
+use crate::gap::{blur, Named, Withheld};
 use crate::sensor::{Effect, SensorModel};
 
 /// Smallest excess width of the real edges over the render's (in quadrature) named as `blur`,
@@ -14,15 +14,16 @@ use crate::sensor::{Effect, SensorModel};
 /// the frames' noise dominate).
 const BLUR_MIN_PX: f64 = 0.3;
 
-/// Blur, measured on the skyline ([`blur`]). Updates `model`.
+/// Blur, measured on the skyline ([`blur`]). Updates `model`; says why when the skyline could
+/// not witness a blur because the background behind the terrain is lit.
 pub(crate) fn blur_stage(
     ctx: &Ctx<'_>,
     model: &mut SensorModel,
     min_share: f64,
     out: &mut Vec<Named>,
-) {
+) -> Option<Withheld> {
     if has(model, "blur") {
-        return;
+        return None;
     }
     let preds = ctx.predict_sampled(model, 1);
     let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
@@ -63,7 +64,20 @@ pub(crate) fn blur_stage(
         .collect();
     let skyline = blur::Skyline::sample(&views);
     let Some(m) = skyline.measure(&|_| true) else {
-        return;
+        return (skyline.lit_views > 0).then(|| Withheld {
+            effect: "blur".to_string(),
+            stage: "blur".to_string(),
+            reason: format!(
+                "not measured: the background beyond the terrain's skyline is lit in {} of {} \
+                 views ({} profiles more than {:.1} DN above the render's sky), so its edges are \
+                 steps between lit surfaces, not a PSF's; a blur needs an unlit background \
+                 (sky, black drape) behind part of the terrain",
+                skyline.lit_views,
+                ctx.views.len(),
+                skyline.lit_profiles,
+                blur::dark_background_dn()
+            ),
+        });
     };
     // Named on the edges' excess width (the evidence), valued by the matched PSF.
     let share = if m.real_var > 0.0 {
@@ -72,7 +86,7 @@ pub(crate) fn blur_stage(
         0.0
     };
     if m.excess_px < BLUR_MIN_PX || share < min_share {
-        return;
+        return None;
     }
     // The captures' spread (each left out in turn) and the estimator's calibration in
     // quadrature.
@@ -96,4 +110,5 @@ pub(crate) fn blur_stage(
             m.profiles, m.real_var, m.render_var
         ),
     ));
+    None
 }
