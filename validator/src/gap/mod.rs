@@ -432,7 +432,14 @@ fn run_steps(
     steps.step();
     candidates.insert(
         "photometry".to_string(),
-        photometry_stage(&ctx, &mut model, opts.min_share, &witness, &mut found),
+        photometry_stage(
+            &ctx,
+            &mut model,
+            opts.min_share,
+            &witness,
+            &mut found,
+            &mut withheld,
+        ),
     );
     steps.step();
     shadows_stage(&ctx, &mut model, &mut found);

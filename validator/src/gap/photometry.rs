@@ -270,6 +270,15 @@ fn bounds(i: usize) -> (f64, f64) {
 }
 const STEP: [f64; 4] = [1e-5, 1e-5, 1e-5, 1e-5];
 
+/// Whether parameter `i`'s value `v` sits on a bound of its fit ([`bounds`], to 10⁻⁶ of the
+/// span): the fit wanted it further out than any camera of the catalogue goes, so it stands in
+/// for something else.
+pub fn at_bound(i: usize, v: f64) -> bool {
+    let (lo, hi) = bounds(i);
+    let tol = 1e-6 * (hi - lo).abs().max(1e-9);
+    (v - lo).abs() <= tol || (v - hi).abs() <= tol
+}
+
 /// The free parameters of a subset of {`exposure`, `vignetting`, `gamma`}; `gain` alone frees
 /// the exposure gain without its offset (the level nuisance of every final fit).
 pub fn free(effects: &[&str]) -> Vec<usize> {
@@ -500,6 +509,17 @@ pub fn mse(s: &Samples, p: &[f64; 4], use_fold: &dyn Fn(usize) -> bool) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_parameter_is_on_its_bound_only_at_the_widened_catalogue_range() {
+        // The exposure offset's range is ±0.05, widened by half its span: ±0.10.
+        let offset = PARAMS.iter().position(|n| *n == "offset").unwrap();
+        assert!(at_bound(offset, -0.1) && at_bound(offset, 0.1));
+        assert!(!at_bound(offset, -0.0999) && !at_bound(offset, 0.05) && !at_bound(offset, 0.0));
+        // A gamma of 1 is inside its widened range [0.3, 3.1].
+        let gamma = PARAMS.iter().position(|n| *n == "gamma").unwrap();
+        assert!(!at_bound(gamma, 1.0) && at_bound(gamma, bounds(gamma).0));
+    }
 
     #[test]
     fn erode_keeps_a_pixel_only_if_its_whole_window_is_set() {

@@ -184,6 +184,21 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
             &rows,
         );
     }
+    if !r.withheld.is_empty() {
+        page.heading(2, "Not named, and why", None);
+        let rows: Vec<Vec<Cell>> = r
+            .withheld
+            .iter()
+            .map(|w| {
+                vec![
+                    Cell::new(w.effect.clone()),
+                    Cell::new(w.stage.clone()),
+                    Cell::new(w.reason.clone()),
+                ]
+            })
+            .collect();
+        page.table(&["effect", "stage", "reason"], &rows);
+    }
     if let Some(t) = &r.texture {
         page.heading(2, "Texture detail", None);
         page.paragraph(&format!(
