@@ -270,7 +270,7 @@ fn bounds(i: usize) -> (f64, f64) {
 }
 const STEP: [f64; 4] = [1e-5, 1e-5, 1e-5, 1e-5];
 
-/// Whether parameter `i`'s value `v` sits on a bound of its fit ([`bounds`], to 10⁻⁶ of the
+/// Whether parameter `i`'s value `v` sits on a bound of its fit (`bounds`, to 10⁻⁶ of the
 /// span): the fit wanted it further out than any camera of the catalogue goes, so it stands in
 /// for something else.
 pub fn at_bound(i: usize, v: f64) -> bool {
