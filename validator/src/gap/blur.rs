@@ -38,8 +38,8 @@
 //! the render shows there: an unlit background (a sky, or a lab draped in black). A lit one —
 //! the testbed's rim, the hall's floor and walls, which no entry holds — makes the real edge a
 //! step between two lit surfaces (often a staircase: terrain, the rim's inner face, its top),
-//! wider than any PSF: on independently rendered lab campaigns (training seeds 311, 312, far
-//! side 27–44 DN above the render's sky) such edges read 0.6–1.6 px with nothing hidden. So a
+//! wider than any PSF: on independently rendered lab campaigns (docs/gap-findings.md, far
+//! sides 27–44 DN above the render's sky) such edges read 0.6–1.6 px with nothing hidden. So a
 //! profile counts only when the real far side is no brighter than the render's sky plus the
 //! largest offset an exposure of the catalogue lifts a black background by
 //! ([`dark_background_dn`]); and a view counts only when most of its profiles do (a lit

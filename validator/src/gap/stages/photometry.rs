@@ -391,7 +391,11 @@ pub(crate) fn photometry_stage(
     // lacks (on independently rendered lab campaigns, an exposure offset of −0.10 with a gain
     // of 1.30 where nothing was hidden: the laser texture's own radiometry and the hall's
     // interreflections). An offset held at the black level is not free.
-    let pinned = |name: &str| -> Option<&'static str> {
+    let base_err = cands
+        .iter()
+        .find(|c| c.effects.is_empty())
+        .map_or(0.0, |c| c.cv_error);
+    let pinned = |name: &str| -> Option<usize> {
         let idx: &[usize] = match name {
             "exposure" if plain.black.is_some() => &[0],
             "exposure" => &[0, 1],
@@ -399,29 +403,22 @@ pub(crate) fn photometry_stage(
             "gamma" => &[3],
             _ => &[],
         };
-        idx.iter()
-            .find(|&&i| photometry::at_bound(i, p[i]))
-            .map(|&i| photometry::PARAMS[i])
+        idx.iter().copied().find(|&i| photometry::at_bound(i, p[i]))
     };
     for name in chosen.iter().filter(|n| significant(n)) {
-        if let Some(param) = pinned(name) {
+        if let Some(i) = pinned(name) {
             withheld.push(Withheld {
                 effect: (*name).to_string(),
                 stage: "photometry".to_string(),
                 reason: format!(
                     "chosen (held-out photometric MSE {:.1} DN² with no effect, {:.1} DN² with \
-                     the chosen set) but its {param} {:.4} lies on the fit's bound, beyond any \
+                     the chosen set) but its {} {:.4} lies on the fit's bound, beyond any \
                      camera of the catalogue: it stands in for something the catalogue lacks \
                      (the texture's radiometry, interreflections, the BRDF)",
-                    cands
-                        .iter()
-                        .find(|c| c.effects.is_empty())
-                        .map_or(0.0, |c| c.cv_error),
+                    base_err,
                     allowed[choice.index].cv_error,
-                    p[photometry::PARAMS
-                        .iter()
-                        .position(|n| *n == param)
-                        .unwrap_or(0)]
+                    photometry::PARAMS[i],
+                    p[i]
                 ),
             });
         }
@@ -432,10 +429,6 @@ pub(crate) fn photometry_stage(
             upsert(model, e);
         }
     }
-    let base_err = cands
-        .iter()
-        .find(|c| c.effects.is_empty())
-        .map_or(0.0, |c| c.cv_error);
     for (name, share) in choice.explained.iter().filter(|(n, _)| significant(n)) {
         if let Some((e, errs)) = built(name) {
             let mut n = named(
