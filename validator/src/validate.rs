@@ -31,13 +31,15 @@ use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 
 use crate::features::{self, contrast, Detector, DetectorParams, GreyF32};
-use crate::metrics::compare::{compare, detect, Detected, MatchingFigures, ViewDetections};
+use crate::metrics::compare::{
+    compare, detect, Detected, MatchingFigures, RepeatFrame, ViewDetections,
+};
 use crate::metrics::photometric::{self, Photometric};
 use crate::metrics::region_overlap::RegionRepeatability;
 use crate::metrics::repeatability::{Repeatability, EPSILONS};
 use crate::metrics::spectrum::{log_ratio, radial_spectrum, RadialSpectrum};
 use crate::metrics::stats::{mean_ci, Interval};
-use crate::render::{AlbedoGrid, Geometry, HeightGrid, Light, Sampling, Scene};
+use crate::render::{AlbedoGrid, Geometry, HeightGrid, Light, RayTables, Sampling, Scene};
 use crate::sensor::{stored_model, Placement, SensorModel};
 
 /// Version of the validator recorded in certificates and in sharded units' keys: its minor
@@ -614,13 +616,15 @@ pub struct Validator<'v> {
     images: Vec<CaptureImage>,
     views: Vec<(String, String)>,
     real: Vec<Mutex<Option<Arc<RealView>>>>,
+    /// The cameras' ray tables, shared by every entry's scene.
+    rays: Arc<RayTables>,
 }
 
 /// One view's real frames and each detector's output on them, in the options' order.
 struct RealView {
     a: GreyF32,
     b: Option<GreyF32>,
-    found: Vec<(Detected, Option<Detected>)>,
+    found: Vec<(Detected, Option<RepeatFrame>)>,
     /// Radial spectrum of frame a in grey levels 0–255 (the render's is compared with it).
     spectrum: RadialSpectrum,
 }
@@ -639,6 +643,7 @@ impl<'v> Validator<'v> {
             images,
             views,
             real,
+            rays: Arc::default(),
         })
     }
 
@@ -668,8 +673,11 @@ impl<'v> Validator<'v> {
             .detectors
             .iter()
             .map(|&d| {
-                let on_b = b.as_ref().map(|b| detect(b, d, &params));
-                (detect(&a, d, &params), on_b)
+                let on_a = detect(&a, d, &params);
+                let on_b = b
+                    .as_ref()
+                    .map(|b| RepeatFrame::new(&on_a, detect(b, d, &params)));
+                (on_a, on_b)
             })
             .collect();
         let spectrum = radial_spectrum(&to255(&a), a.width, a.height, SPECTRUM_BANDS);
@@ -713,7 +721,7 @@ impl<'v> Validator<'v> {
         let geometry = entry_geometry(view, entry)?;
         // Renders here are samples (with the model's noise), so they carry its texture detail too.
         let geometry = sensor.detailed(&geometry).unwrap_or(geometry);
-        let scene = Scene::new(&geometry);
+        let scene = Scene::new(&geometry).sharing_rays(Arc::clone(&self.rays));
         let work = EntryWork {
             entry,
             scene: &scene,

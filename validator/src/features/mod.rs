@@ -156,8 +156,6 @@ pub fn describe_with(
     }
 }
 
-/// Squared Euclidean distance.
-#[inline]
 /// Nearest-neighbour matching of `a` against `b` with Lowe's ratio test: `(i, j)` is kept when
 /// `b[j]` is the nearest to `a[i]` and `‖a_i − b_j‖ < ratio · ‖a_i − b_second‖` (Euclidean
 /// distances; Lowe used 0.8). Ties go to the lower index; the output is in `i` order.

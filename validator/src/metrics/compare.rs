@@ -14,7 +14,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::matching::{
-    match_descriptors, matching_score, verify_matches, MatchParams, MatchReport, MatchingScore,
+    match_descriptors, matching_score, verify_matches, Match, MatchParams, MatchReport,
+    MatchingScore,
 };
 use super::ransac::RansacParams;
 use super::region_overlap::{region_repeatability, Ellipse, RegionParams, RegionRepeatability};
@@ -99,17 +100,59 @@ fn points(k: &[Keypoint]) -> Vec<[f64; 2]> {
     k.iter().map(|p| [f64::from(p.x), f64::from(p.y)]).collect()
 }
 
-fn matching(
-    a: &Detected,
-    b: &Detected,
-    seen: &impl Fn([f64; 2]) -> bool,
-    eps: f64,
-) -> MatchingFigures {
-    let params = MatchParams::default();
-    let matches = match_descriptors(&a.descriptors, &b.descriptors, &params);
-    MatchingFigures {
-        score: matching_score(&points(&a.kps), &points(&b.kps), &matches, Some, seen, eps),
-        ransac: verify_matches(&a.kps, &b.kps, &matches, &RansacParams::homography()),
+/// Descriptor matches of `a` in `b` and their RANSAC verification: what SIFT's matching
+/// figures need besides the region both images see.
+#[derive(Debug, Clone)]
+struct Matched {
+    matches: Vec<Match>,
+    ransac: MatchReport,
+}
+
+impl Matched {
+    fn of(a: &Detected, b: &Detected) -> Matched {
+        let matches = match_descriptors(&a.descriptors, &b.descriptors, &MatchParams::default());
+        let ransac = verify_matches(&a.kps, &b.kps, &matches, &RansacParams::homography());
+        Matched { matches, ransac }
+    }
+
+    fn figures(
+        &self,
+        a: &Detected,
+        b: &Detected,
+        seen: &impl Fn([f64; 2]) -> bool,
+        eps: f64,
+    ) -> MatchingFigures {
+        let (pa, pb) = (points(&a.kps), points(&b.kps));
+        MatchingFigures {
+            score: matching_score(&pa, &pb, &self.matches, Some, seen, eps),
+            ransac: self.ransac,
+        }
+    }
+}
+
+/// A detector's output on real frame b of a view, with what comparing it with real frame a
+/// gives whatever a render is compared too (SIFT's matches a → b and their RANSAC check).
+/// Both frames are the same for every entry validated, so this is made once per view.
+#[derive(Debug, Clone)]
+pub struct RepeatFrame {
+    detected: Detected,
+    matched: Option<Matched>,
+}
+
+impl RepeatFrame {
+    /// Real frame b's detections `b`, compared with real frame a's `a` (same detector).
+    pub fn new(a: &Detected, b: Detected) -> RepeatFrame {
+        let matched =
+            (!a.descriptors.is_empty() || !b.descriptors.is_empty()).then(|| Matched::of(a, &b));
+        RepeatFrame {
+            detected: b,
+            matched,
+        }
+    }
+
+    /// Real frame b's detections.
+    pub fn detected(&self) -> &Detected {
+        &self.detected
     }
 }
 
@@ -121,7 +164,7 @@ pub struct ViewDetections<'a> {
     /// On the render at the same pose.
     pub render: &'a Detected,
     /// On real frame b at the same pose, when the campaign has repeat frames.
-    pub real_b: Option<&'a Detected>,
+    pub real_b: Option<&'a RepeatFrame>,
 }
 
 /// Measures detector `d`'s output on one view (see [`detect`]): point repeatability over
@@ -136,7 +179,8 @@ pub fn compare(
     curve: &[f64],
     eps: f64,
 ) -> DetectorComparison {
-    let (a, s, b) = (found.real_a, found.render, found.real_b);
+    let (a, s, repeat) = (found.real_a, found.render, found.real_b);
+    let b = repeat.map(RepeatFrame::detected);
     let (pa, ps) = (points(&a.kps), points(&s.kps));
     let sim = repeatability(&pa, &ps, Some, &seen, seen_px, curve);
     let ceiling = b.map(|b| repeatability(&pa, &points(&b.kps), Some, &seen, seen_px, &[eps])[0]);
@@ -150,8 +194,14 @@ pub fn compare(
     });
     let matching = (d == Detector::Sift).then(|| {
         (
-            matching(a, s, &seen, eps),
-            b.map(|b| matching(a, b, &seen, eps)),
+            Matched::of(a, s).figures(a, s, &seen, eps),
+            repeat.map(|r| {
+                let b = &r.detected;
+                match &r.matched {
+                    Some(m) => m.figures(a, b, &seen, eps),
+                    None => Matched::of(a, b).figures(a, b, &seen, eps),
+                }
+            }),
         )
     });
     DetectorComparison {

@@ -56,13 +56,33 @@ pub struct Match {
     pub distance: f32,
 }
 
-/// Squared Euclidean distance; `∞` when the lengths differ (never a match).
+/// Lanes of [`dist2`]'s partial sums.
+const LANES: usize = 8;
+
+/// Squared Euclidean distance; `∞` when the lengths differ (never a match). Summed in
+/// [`LANES`] interleaved partial sums, then those in order: a fixed order (so the same on any
+/// machine and thread count) that the compiler can keep in one vector register. A single
+/// running sum must be added element by element, which made matching 7 % of a release's
+/// validation.
 #[inline]
 fn dist2(a: &[f32], b: &[f32]) -> f32 {
     if a.len() != b.len() {
         return f32::INFINITY;
     }
-    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+    let mut acc = [0.0f32; LANES];
+    let (ca, cb) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+    let tail: f32 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum();
+    for (xa, xb) in ca.zip(cb) {
+        for ((s, x), y) in acc.iter_mut().zip(xa).zip(xb) {
+            *s += (x - y) * (x - y);
+        }
+    }
+    acc.iter().sum::<f32>() + tail
 }
 
 /// `(index, nearest d², second-nearest d²)` of `q` in `set`; the first index wins ties.

@@ -237,9 +237,8 @@ pub struct Rendered {
 /// many views of the same terrain.
 pub struct Scene<'a> {
     pub(crate) kind: SceneKind<'a>,
-    /// Camera-ray tables of the cameras rendered so far (most recent last), see
-    /// [`raster::RayTable`].
-    rays: std::sync::Mutex<Vec<std::sync::Arc<raster::RayTable>>>,
+    /// Camera-ray tables of the cameras rendered so far, see [`RayTables`].
+    rays: std::sync::Arc<RayTables>,
     /// Exact spheres standing on the geometry (survey marker balls), see [`Sphere`].
     pub(crate) spheres: Vec<Sphere>,
 }
@@ -282,8 +281,15 @@ impl Sphere {
     }
 }
 
-/// Ray tables kept per scene (one per camera and sampling rate; a stereo rig needs two).
+/// Ray tables kept (one per camera and sampling rate; a stereo rig needs two).
 const RAY_TABLES: usize = 4;
+
+/// The camera-ray tables of the cameras rendered so far, most recent last (see
+/// [`raster::RayTable`]). A scene keeps its own; scenes of different geometry seen by the same
+/// cameras (the entries of one release) can share one ([`Scene::sharing_rays`]), so the rays
+/// are computed once per camera, not once per entry (4 % of a release's validation).
+#[derive(Default)]
+pub struct RayTables(std::sync::Mutex<Vec<std::sync::Arc<raster::RayTable>>>);
 
 pub(crate) enum SceneKind<'a> {
     Heightfield {
@@ -311,9 +317,16 @@ impl<'a> Scene<'a> {
         };
         Scene {
             kind,
-            rays: std::sync::Mutex::new(Vec::new()),
+            rays: std::sync::Arc::default(),
             spheres: Vec::new(),
         }
+    }
+
+    /// The scene taking its camera-ray tables from (and adding them to) `tables`, which
+    /// other scenes may share: the tables depend on the camera only.
+    pub fn sharing_rays(mut self, tables: std::sync::Arc<RayTables>) -> Scene<'a> {
+        self.rays = tables;
+        self
     }
 
     /// The scene with `spheres` standing on its geometry: they are seen, shaded and cast
@@ -332,13 +345,13 @@ impl<'a> Scene<'a> {
     ) -> std::sync::Arc<raster::RayTable> {
         let n = supersample.max(1);
         let hit = |t: &std::sync::Arc<raster::RayTable>| t.camera == *camera && t.supersample == n;
-        if let Ok(tables) = self.rays.lock() {
+        if let Ok(tables) = self.rays.0.lock() {
             if let Some(t) = tables.iter().find(|t| hit(t)) {
                 return t.clone();
             }
         }
         let table = std::sync::Arc::new(raster::RayTable::new(camera, n));
-        if let Ok(mut tables) = self.rays.lock() {
+        if let Ok(mut tables) = self.rays.0.lock() {
             if !tables.iter().any(hit) {
                 if tables.len() == RAY_TABLES {
                     tables.remove(0);
