@@ -25,6 +25,9 @@ use super::{Hit, MeshTexture, TriMeshF32};
 
 /// Maximum number of triangles in a leaf.
 const LEAF: usize = 4;
+/// The reciprocal of a zero ray component in the slab test: finite, and past any
+/// `1 / component` a ray meeting the scene can have.
+const INV_ZERO: f64 = 1e300;
 /// Traversal stack size (the median-split tree depth is at most ~log2(n) + 1).
 const STACK: usize = 96;
 
@@ -350,14 +353,23 @@ impl MeshTracer {
         t_max: f64,
         any: bool,
     ) -> Option<(f64, usize, f64, f64)> {
-        let inv = [1.0 / d[0], 1.0 / d[1], 1.0 / d[2]];
+        // Finite reciprocals (a ray parallel to an axis gets ±1e300), so no slab product is
+        // `0 · ∞ = NaN` and the slab test needs plain comparisons, not NaN-aware `min`/`max`.
+        let inv = d.map(|v| {
+            if v == 0.0 {
+                INV_ZERO
+            } else {
+                (1.0 / v).clamp(-INV_ZERO, INV_ZERO)
+            }
+        });
         let span = |n: &Node, t1: f64| -> Option<f64> {
             let (mut lo, mut hi) = (0.0f64, t1);
             for k in 0..3 {
                 let ta = (f64::from(n.lo[k]) - o[k]) * inv[k];
                 let tb = (f64::from(n.hi[k]) - o[k]) * inv[k];
-                lo = lo.max(ta.min(tb));
-                hi = hi.min(ta.max(tb));
+                let (near, far) = if ta < tb { (ta, tb) } else { (tb, ta) };
+                lo = if near > lo { near } else { lo };
+                hi = if far < hi { far } else { hi };
             }
             (lo <= hi).then_some(lo)
         };
