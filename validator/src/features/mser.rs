@@ -58,20 +58,20 @@ impl Default for MserParams {
 
 const NONE: u32 = u32::MAX;
 
-/// A component-tree node: what the stability test walks (its moments are kept apart, in
-/// [`Tree::mom`], so the walks up and down the tree touch 12 bytes per node, not 52).
+/// A component-tree node: what the stability test walks, and a pixel of the component.
 #[derive(Debug, Clone, Copy)]
 struct Node {
     size: u32,
     parent: u32,
+    /// A pixel of the component (its union-find root when the node was made), from which
+    /// [`moments`] floods the region of the few nodes that are kept.
+    seed: u32,
     level: u8,
 }
 
-/// The component tree of one polarity: nodes in creation order (children before parents) and
-/// each node's moments `Σx, Σy, Σx², Σxy, Σy²`.
+/// The component tree of one polarity: nodes in creation order (children before parents).
 struct Tree {
     nodes: Vec<Node>,
-    mom: Vec<[u64; 5]>,
 }
 
 /// Union-find state of one pixel: `parent` is `NONE` until the pixel is added; `size` and
@@ -84,10 +84,11 @@ struct Cell {
     node: u32,
 }
 
-/// Per-pixel union-find state, and the moments of each root.
+/// Per-pixel union-find state. Moments are not carried along the unions: of the component
+/// tree's ~10⁶ nodes only a few hundred regions are kept, and flooding those afterwards
+/// ([`moments`]) costs less than updating 40 bytes of moments at every pixel and union.
 struct Forest {
     cells: Vec<Cell>,
-    mom: Vec<[u64; 5]>,
 }
 
 impl Forest {
@@ -118,17 +119,14 @@ impl Forest {
         }
     }
 
-    /// Adds pixel `i` at `(x, y)` as a component of its own.
-    fn add(&mut self, i: usize, x: u64, y: u64) {
+    /// Adds pixel `i` as a component of its own.
+    fn add(&mut self, i: usize) {
         if let Some(c) = self.cells.get_mut(i) {
             *c = Cell {
                 parent: i as u32,
                 size: 1,
                 node: NONE,
             };
-        }
-        if let Some(m) = self.mom.get_mut(i) {
-            *m = [x, y, x * x, x * y, y * y];
         }
     }
 
@@ -140,17 +138,11 @@ impl Forest {
             (b, a)
         };
         let ss = self.size(small);
-        let ms = self.mom.get(small as usize).copied().unwrap_or_default();
         if let Some(c) = self.cells.get_mut(small as usize) {
             c.parent = big;
         }
         if let Some(c) = self.cells.get_mut(big as usize) {
             c.size += ss;
-        }
-        if let Some(m) = self.mom.get_mut(big as usize) {
-            for (m, s) in m.iter_mut().zip(ms) {
-                *m += s;
-            }
         }
         big
     }
@@ -197,12 +189,8 @@ fn component_tree(levels: &[u8], w: usize, h: usize) -> Tree {
             };
             n
         ],
-        mom: vec![[0; 5]; n],
     };
-    let mut tree = Tree {
-        nodes: Vec::new(),
-        mom: Vec::new(),
-    };
+    let mut tree = Tree { nodes: Vec::new() };
     let mut orphans: Vec<(u32, u32)> = Vec::new();
     for (g, bounds) in start.windows(2).enumerate() {
         let pixels = match bounds {
@@ -213,7 +201,7 @@ fn component_tree(levels: &[u8], w: usize, h: usize) -> Tree {
         for &pix in pixels {
             let i = pix as usize;
             let (x, y) = (i % w, i / w);
-            f.add(i, x as u64, y as u64);
+            f.add(i);
             let neighbours = [
                 (x > 0).then(|| i - 1),
                 (x + 1 < w).then(|| i + 1),
@@ -240,19 +228,16 @@ fn component_tree(levels: &[u8], w: usize, h: usize) -> Tree {
         }
         for &pix in pixels {
             let r = f.find(pix);
-            let (size, mom) = (
-                f.size(r),
-                f.mom.get(r as usize).copied().unwrap_or_default(),
-            );
+            let size = f.size(r);
             if let Some(c) = f.cells.get_mut(r as usize) {
                 if c.node == NONE {
                     c.node = tree.nodes.len() as u32;
                     tree.nodes.push(Node {
                         size,
                         parent: NONE,
+                        seed: r,
                         level: g as u8,
                     });
-                    tree.mom.push(mom);
                 }
             }
         }
@@ -344,13 +329,69 @@ fn pass(levels: &[u8], w: usize, h: usize, bright: bool, p: &MserParams) -> Vec<
             }
         }
     }
+    let mut flood = Flood::new(levels.len());
     nodes
         .iter()
-        .zip(&tree.mom)
         .zip(stable.iter().zip(&var))
         .filter(|(_, (&s, _))| s)
-        .map(|((nd, mom), (_, &v))| region(nd, mom, bright, v))
+        .map(|(nd, (_, &v))| region(nd, &flood.moments(levels, w, h, nd), bright, v))
         .collect()
+}
+
+/// Scratch of [`Flood::moments`]: a visit stamp per pixel (a new stamp per region, so
+/// nothing is cleared between regions) and the queue.
+struct Flood {
+    stamp: Vec<u32>,
+    current: u32,
+    queue: Vec<u32>,
+}
+
+impl Flood {
+    fn new(n: usize) -> Flood {
+        Flood {
+            stamp: vec![0; n],
+            current: 0,
+            queue: Vec::new(),
+        }
+    }
+
+    /// `Σx, Σy, Σx², Σxy, Σy²` of node `nd`'s region: the 4-connected pixels of level at most
+    /// `nd.level` around its seed (the component the union-find built), exact in integers.
+    fn moments(&mut self, levels: &[u8], w: usize, h: usize, nd: &Node) -> [u64; 5] {
+        self.current += 1;
+        let stamp = self.current;
+        let mut mom = [0u64; 5];
+        self.queue.clear();
+        if let Some(s) = self.stamp.get_mut(nd.seed as usize) {
+            *s = stamp;
+            self.queue.push(nd.seed);
+        }
+        let mut head = 0;
+        while let Some(&p) = self.queue.get(head) {
+            head += 1;
+            let i = p as usize;
+            let (x, y) = (i % w, i / w);
+            let (xu, yu) = (x as u64, y as u64);
+            for (m, v) in mom.iter_mut().zip([xu, yu, xu * xu, xu * yu, yu * yu]) {
+                *m += v;
+            }
+            let neighbours = [
+                (x > 0).then(|| i - 1),
+                (x + 1 < w).then(|| i + 1),
+                (y > 0).then(|| i - w),
+                (y + 1 < h).then(|| i + w),
+            ];
+            for q in neighbours.into_iter().flatten() {
+                let inside = levels.get(q).is_some_and(|&l| l <= nd.level);
+                if let Some(s) = self.stamp.get_mut(q).filter(|s| inside && **s != stamp) {
+                    *s = stamp;
+                    self.queue.push(q as u32);
+                }
+            }
+        }
+        debug_assert_eq!(self.queue.len(), nd.size as usize);
+        mom
+    }
 }
 
 fn region(nd: &Node, mom: &[u64; 5], bright: bool, variation: f32) -> Region {
