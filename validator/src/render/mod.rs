@@ -285,7 +285,7 @@ impl Sphere {
 const RAY_TABLES: usize = 4;
 
 /// The camera-ray tables of the cameras rendered so far, most recent last (see
-/// [`raster::RayTable`]). A scene keeps its own; scenes of different geometry seen by the same
+/// `RayTable`). A scene keeps its own; scenes of different geometry seen by the same
 /// cameras (the entries of one release) can share one ([`Scene::sharing_rays`]), so the rays
 /// are computed once per camera, not once per entry (4 % of a release's validation).
 #[derive(Default)]
