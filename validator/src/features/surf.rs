@@ -75,15 +75,6 @@ fn haar(src: &[[i32; 5]], old: usize, new: usize) -> Vec<HaarBox> {
         .collect()
 }
 
-/// Haar response with the pattern's top-left corner at `(x, y)` of the sum table.
-#[inline]
-fn haar_at(sum: &Integral, x: usize, y: usize, pattern: &[HaarBox]) -> f32 {
-    pattern
-        .iter()
-        .map(|b| sum.rect(x + b.x0, y + b.y0, x + b.x1, y + b.y1) as f64 * b.w)
-        .sum::<f64>() as f32
-}
-
 const DX: [[i32; 5]; 3] = [[0, 2, 3, 7, 1], [3, 2, 6, 7, -2], [6, 2, 9, 7, 1]];
 const DY: [[i32; 5]; 3] = [[2, 0, 7, 3, 1], [2, 3, 7, 6, -2], [2, 6, 7, 9, 1]];
 const DXY: [[i32; 5]; 4] = [
@@ -110,6 +101,40 @@ impl Layer {
     }
 }
 
+/// A Haar box as offsets into the sum table from the pattern's top-left corner:
+/// `sum[o + d11] − sum[o + d01] − sum[o + d10] + sum[o + d00]` is its pixel sum.
+#[derive(Clone, Copy)]
+struct BoxOffsets {
+    d00: usize,
+    d01: usize,
+    d10: usize,
+    d11: usize,
+    w: f64,
+}
+
+fn offsets(pattern: &[HaarBox], stride: usize) -> Vec<BoxOffsets> {
+    pattern
+        .iter()
+        .map(|b| BoxOffsets {
+            d00: b.y0 * stride + b.x0,
+            d01: b.y1 * stride + b.x0,
+            d10: b.y0 * stride + b.x1,
+            d11: b.y1 * stride + b.x1,
+            w: b.w,
+        })
+        .collect()
+}
+
+/// Haar response of `pattern` with its top-left corner at offset `o` of the sum table.
+#[inline]
+fn haar_at(sum: &[i64], o: usize, pattern: &[BoxOffsets]) -> f32 {
+    let g = |i: usize| sum.get(o + i).copied().unwrap_or(0);
+    pattern
+        .iter()
+        .map(|b| (g(b.d11) - g(b.d01) - g(b.d10) + g(b.d00)) as f64 * b.w)
+        .sum::<f64>() as f32
+}
+
 fn build_layer(sum: &Integral, size: usize, step: usize) -> Layer {
     let (h, w) = (sum.rows - 1, sum.stride - 1);
     let (rows, cols) = (h / step, w / step);
@@ -121,42 +146,40 @@ fn build_layer(sum: &Integral, size: usize, step: usize) -> Layer {
         det: vec![0.0; rows * cols],
         trace_sign: vec![0; rows * cols],
     };
-    if size > h || size > w {
+    if size > h || size > w || cols == 0 {
         return layer;
     }
-    let (dx, dy, dxy) = (haar(&DX, 9, size), haar(&DY, 9, size), haar(&DXY, 9, size));
+    let stride = sum.stride;
+    let (dx, dy, dxy) = (
+        offsets(&haar(&DX, 9, size), stride),
+        offsets(&haar(&DY, 9, size), stride),
+        offsets(&haar(&DXY, 9, size), stride),
+    );
     let samples_i = 1 + (h - size) / step;
     let samples_j = 1 + (w - size) / step;
     let margin = (size / 2) / step;
-    let rows_out: Vec<(usize, Vec<(f32, i8)>)> = (0..samples_i)
-        .into_par_iter()
-        .map(|i| {
-            let vals = (0..samples_j)
-                .map(|j| {
-                    let (x, y) = (j * step, i * step);
-                    let (a, b, c) = (
-                        haar_at(sum, x, y, &dx),
-                        haar_at(sum, x, y, &dy),
-                        haar_at(sum, x, y, &dxy),
-                    );
-                    (
-                        a * b - 0.81 * c * c,
-                        ((a + b) > 0.0) as i8 - ((a + b) < 0.0) as i8,
-                    )
-                })
-                .collect();
-            (i, vals)
-        })
-        .collect();
-    for (i, vals) in rows_out {
-        for (j, (d, t)) in vals.into_iter().enumerate() {
-            let k = (i + margin) * cols + j + margin;
-            if let (Some(dd), Some(tt)) = (layer.det.get_mut(k), layer.trace_sign.get_mut(k)) {
-                *dd = d;
-                *tt = t;
+    let table = &sum.sum[..];
+    layer
+        .det
+        .par_chunks_mut(cols)
+        .zip(layer.trace_sign.par_chunks_mut(cols))
+        .enumerate()
+        .skip(margin)
+        .take(samples_i)
+        .for_each(|(r, (det, sign))| {
+            let y = (r - margin) * step;
+            let cells = det.iter_mut().zip(sign.iter_mut()).skip(margin);
+            for (j, (d, t)) in cells.take(samples_j).enumerate() {
+                let o = y * stride + j * step;
+                let (a, b, c) = (
+                    haar_at(table, o, &dx),
+                    haar_at(table, o, &dy),
+                    haar_at(table, o, &dxy),
+                );
+                *d = a * b - 0.81 * c * c;
+                *t = ((a + b) > 0.0) as i8 - ((a + b) < 0.0) as i8;
             }
-        }
-    }
+        });
     layer
 }
 
@@ -286,8 +309,14 @@ fn orientation(sum: &Integral, kp: &Keypoint) -> Option<f32> {
         return None;
     }
     let g = gaussian_kernel_n(2 * ORI_RADIUS as usize + 1, ORI_SIGMA);
-    let hx = haar(&[[0, 0, 2, 4, -1], [2, 0, 4, 4, 1]], 4, wav);
-    let hy = haar(&[[0, 0, 4, 2, 1], [0, 2, 4, 4, -1]], 4, wav);
+    let hx = offsets(
+        &haar(&[[0, 0, 2, 4, -1], [2, 0, 4, 4, 1]], 4, wav),
+        sum.stride,
+    );
+    let hy = offsets(
+        &haar(&[[0, 0, 4, 2, 1], [0, 2, 4, 4, -1]], 4, wav),
+        sum.stride,
+    );
     let mut samples: Vec<(f32, f32, i32)> = Vec::new();
     for i in -ORI_RADIUS..=ORI_RADIUS {
         for j in -ORI_RADIUS..=ORI_RADIUS {
@@ -302,8 +331,9 @@ fn orientation(sum: &Integral, kp: &Keypoint) -> Option<f32> {
             }
             let wgt = g.get((i + ORI_RADIUS) as usize).copied().unwrap_or(0.0)
                 * g.get((j + ORI_RADIUS) as usize).copied().unwrap_or(0.0);
-            let vx = haar_at(sum, x as usize, y as usize, &hx) * wgt;
-            let vy = haar_at(sum, x as usize, y as usize, &hy) * wgt;
+            let o = y as usize * sum.stride + x as usize;
+            let vx = haar_at(&sum.sum, o, &hx) * wgt;
+            let vy = haar_at(&sum.sum, o, &hy) * wgt;
             let mut a = vy.atan2(vx).to_degrees();
             if a < 0.0 {
                 a += 360.0;
