@@ -21,6 +21,8 @@
 //! * Invalid input is skipped, not fatal: triangles with an out-of-range index, a non-finite
 //!   vertex or zero area are left out of the tree.
 
+use rayon::prelude::*;
+
 use super::{Hit, MeshTexture, TriMeshF32};
 
 /// Maximum number of triangles in a leaf.
@@ -197,61 +199,14 @@ impl MeshTracer {
         let centroid =
             |t: &Tri| -> [f64; 3] { std::array::from_fn(|k| t.v0[k] + (t.e1[k] + t.e2[k]) / 3.0) };
         let mut order: Vec<(usize, [f64; 3])> = tris
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(i, t)| (i, centroid(t)))
             .collect();
         if order.is_empty() {
             return;
         }
-        self.pairs.push(Pair([Node::EMPTY; 2]));
-        // (pair, slot, first, end) of the nodes still to fill.
-        let mut work = vec![(0usize, 0usize, 0usize, order.len())];
-        while let Some((pair, slot, s, e)) = work.pop() {
-            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            let (mut clo, mut chi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            for (idx, c) in order.get(s..e).unwrap_or(&[]) {
-                if let Some(t) = tris.get(*idx) {
-                    for p in [t.v0, add(t.v0, t.e1), add(t.v0, t.e2)] {
-                        for k in 0..3 {
-                            lo[k] = lo[k].min(p[k]);
-                            hi[k] = hi[k].max(p[k]);
-                        }
-                    }
-                }
-                for k in 0..3 {
-                    clo[k] = clo[k].min(c[k]);
-                    chi[k] = chi[k].max(c[k]);
-                }
-            }
-            let leaf = e - s <= LEAF;
-            let (start, count) = if leaf {
-                (s, e - s)
-            } else {
-                let ext = [chi[0] - clo[0], chi[1] - clo[1], chi[2] - clo[2]];
-                let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
-                    0
-                } else if ext[1] >= ext[2] {
-                    1
-                } else {
-                    2
-                };
-                let mid = s + (e - s) / 2;
-                if let Some(slice) = order.get_mut(s..e) {
-                    slice.select_nth_unstable_by(mid - s, |a, b| {
-                        a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0))
-                    });
-                }
-                let children = self.pairs.len();
-                self.pairs.push(Pair([Node::EMPTY; 2]));
-                work.push((children, 0, s, mid));
-                work.push((children, 1, mid, e));
-                (children, 0)
-            };
-            if let Some(n) = self.pairs.get_mut(pair).and_then(|p| p.0.get_mut(slot)) {
-                *n = Node::new(lo, hi, start as u32, count as u32);
-            }
-        }
+        self.pairs = subtree(&tris, &mut order, 0);
         if let Some(root) = self.root() {
             let d: [f64; 3] =
                 std::array::from_fn(|k| f64::from(root.hi[k]) - f64::from(root.lo[k]));
@@ -425,6 +380,117 @@ impl MeshTracer {
     }
 }
 
+/// Triangles from which [`subtree`] builds the two halves of a node in parallel; below it a
+/// subtree is built in one task ([`subtree_serial`]).
+const PARALLEL_MIN: usize = 1 << 16;
+
+/// The box of the triangles `order` lists (`(triangle, centroid)`) and, unless they fit in a
+/// leaf, the position at which `order` is now split at its median along the centroids'
+/// longest axis (ties by triangle index, so the tree is a pure function of the input).
+fn split(tris: &[Tri], order: &mut [(usize, [f64; 3])]) -> ([f64; 3], [f64; 3], Option<usize>) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    let (mut clo, mut chi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for (idx, c) in order.iter() {
+        if let Some(t) = tris.get(*idx) {
+            for p in [t.v0, add(t.v0, t.e1), add(t.v0, t.e2)] {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+        }
+        for k in 0..3 {
+            clo[k] = clo[k].min(c[k]);
+            chi[k] = chi[k].max(c[k]);
+        }
+    }
+    if order.len() <= LEAF {
+        return (lo, hi, None);
+    }
+    let ext = [chi[0] - clo[0], chi[1] - clo[1], chi[2] - clo[2]];
+    let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+        0
+    } else if ext[1] >= ext[2] {
+        1
+    } else {
+        2
+    };
+    let mid = order.len() / 2;
+    order.select_nth_unstable_by(mid, |a, b| {
+        a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0))
+    });
+    (lo, hi, Some(mid))
+}
+
+/// The BVH over the triangles `order` lists, whose first entry is at position `first` of the
+/// whole order (leaves name triangles by that position): pairs whose `[0]` holds the root
+/// (and an empty slot), children indices local to the returned list. Big subtrees build their
+/// halves in parallel and splice them: the same tree as one task builds, laid out otherwise,
+/// and a ray's walk depends on the tree only.
+fn subtree(tris: &[Tri], order: &mut [(usize, [f64; 3])], first: usize) -> Vec<Pair> {
+    if order.len() < PARALLEL_MIN {
+        return subtree_serial(tris, order, first);
+    }
+    let (lo, hi, Some(mid)) = split(tris, order) else {
+        return subtree_serial(tris, order, first);
+    };
+    let (left, right) = order.split_at_mut(mid);
+    let (l, r) = rayon::join(
+        || subtree(tris, left, first),
+        || subtree(tris, right, first + mid),
+    );
+    // [root, children, l's pairs but its root holder, r's likewise]: l's index i ≥ 1 moves to
+    // i + 1, r's to i + l.len().
+    let moved = |n: Node, by: usize| {
+        if n.count == 0 {
+            Node {
+                start: n.start + by as u32,
+                ..n
+            }
+        } else {
+            n
+        }
+    };
+    let (lr, rr) = (l[0].0[0], r[0].0[0]);
+    let mut pairs = Vec::with_capacity(l.len() + r.len());
+    pairs.push(Pair([Node::new(lo, hi, 1, 0), Node::EMPTY]));
+    pairs.push(Pair([moved(lr, 1), moved(rr, l.len())]));
+    pairs.extend(l.iter().skip(1).map(|p| Pair(p.0.map(|n| moved(n, 1)))));
+    pairs.extend(
+        r.iter()
+            .skip(1)
+            .map(|p| Pair(p.0.map(|n| moved(n, l.len())))),
+    );
+    pairs
+}
+
+/// [`subtree`] in one task, node by node from a work list.
+fn subtree_serial(tris: &[Tri], order: &mut [(usize, [f64; 3])], first: usize) -> Vec<Pair> {
+    let mut pairs = vec![Pair([Node::EMPTY; 2])];
+    // (pair, slot, first, end) of the nodes still to fill.
+    let mut work = vec![(0usize, 0usize, 0usize, order.len())];
+    while let Some((pair, slot, s, e)) = work.pop() {
+        let Some(part) = order.get_mut(s..e) else {
+            continue;
+        };
+        let (lo, hi, split_at) = split(tris, part);
+        let (start, count) = match split_at {
+            None => (first + s, e - s),
+            Some(mid) => {
+                let children = pairs.len();
+                pairs.push(Pair([Node::EMPTY; 2]));
+                work.push((children, 0, s, s + mid));
+                work.push((children, 1, s + mid, e));
+                (children, 0)
+            }
+        };
+        if let Some(n) = pairs.get_mut(pair).and_then(|p| p.0.get_mut(slot)) {
+            *n = Node::new(lo, hi, start as u32, count as u32);
+        }
+    }
+    pairs
+}
+
 /// The texture's albedo at texture coordinates `(u, v)` with the sampler of [`MeshTexture`]:
 /// `(0, 0)` is the image's top-left corner, texel centres at `((i + 0.5) / width, (j + 0.5) /
 /// height)`, bilinear between texel centres and clamped to the edge texels. The arithmetic is
@@ -514,7 +580,68 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 
 #[cfg(test)]
 mod tests {
-    use super::permute;
+    use super::{permute, subtree, subtree_serial, Node, Pair, Tri, PARALLEL_MIN};
+
+    /// The tree below `node` in pre-order: boxes, and leaves' triangle ranges.
+    fn preorder(pairs: &[Pair], node: &Node, out: &mut Vec<([f32; 3], [f32; 3], u32, u32)>) {
+        if node.count > 0 {
+            out.push((node.lo, node.hi, node.start, node.count));
+            return;
+        }
+        out.push((node.lo, node.hi, 0, 0));
+        let [l, r] = pairs[node.start as usize].0;
+        preorder(pairs, &l, out);
+        preorder(pairs, &r, out);
+    }
+
+    #[test]
+    fn the_parallel_build_makes_the_serial_tree() {
+        // A wavy 200 x 200 grid of quads: 80 000 triangles, past the parallel threshold.
+        let n = 200usize;
+        let z = |i: usize, j: usize| ((i * 7 + j * 13) % 17) as f64 * 0.01;
+        let mut tris = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let p = |a: usize, b: usize| [a as f64 * 0.01, b as f64 * 0.01, z(a, b)];
+                let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+                let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i, j + 1), p(i + 1, j + 1));
+                tris.push(Tri {
+                    v0: a,
+                    e1: sub(b, a),
+                    e2: sub(d, a),
+                });
+                tris.push(Tri {
+                    v0: a,
+                    e1: sub(d, a),
+                    e2: sub(c, a),
+                });
+            }
+        }
+        assert!(tris.len() > PARALLEL_MIN);
+        let order: Vec<(usize, [f64; 3])> = tris
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                (
+                    i,
+                    std::array::from_fn(|k| t.v0[k] + (t.e1[k] + t.e2[k]) / 3.0),
+                )
+            })
+            .collect();
+        let (mut o1, mut o2) = (order.clone(), order);
+        let (par, ser) = (
+            subtree(&tris, &mut o1, 0),
+            subtree_serial(&tris, &mut o2, 0),
+        );
+        assert_eq!(o1, o2);
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        preorder(&par, &par[0].0[0], &mut a);
+        preorder(&ser, &ser[0].0[0], &mut b);
+        let leaves: u32 = a.iter().map(|n| n.3).sum();
+        assert_eq!(leaves as usize, tris.len());
+        assert_eq!(a, b);
+        assert_eq!(par.len(), ser.len());
+    }
 
     #[test]
     fn permute_puts_every_item_where_the_permutation_says() {
