@@ -142,17 +142,15 @@ impl MeshTracer {
             let t = *mesh.texture.as_ref()?.uvs.get(i as usize)?;
             t.iter().all(|c| c.is_finite()).then_some(t)
         };
-        let mut tris: Vec<Tri> = Vec::new();
-        let mut shade: Vec<TriShade> = Vec::new();
-        for t in &mesh.triangles {
+        let prepared = mesh.triangles.par_iter().filter_map(|t| {
             let (Some(a), Some(b), Some(c)) = (vert(t[0]), vert(t[1]), vert(t[2])) else {
-                continue;
+                return None;
             };
             let (e1, e2) = (sub(b, a), sub(c, a));
             let n = cross(e1, e2);
             let len = dot(n, n).sqrt();
             if len <= 0.0 || !len.is_finite() {
-                continue;
+                return None;
             }
             let normal = [n[0] / len, n[1] / len, n[2] / len];
             let uv = match (uv(t[0]), uv(t[1]), uv(t[2])) {
@@ -166,8 +164,7 @@ impl MeshTracer {
                 let (du2, dv2) = (uv[2][0] - uv[0][0], uv[2][1] - uv[0][1]);
                 0.5 * (du1 * dv2 - du2 * dv1).abs() * (tex.width * tex.height) as f64
             });
-            tris.push(Tri { v0: a, e1, e2 });
-            shade.push(TriShade {
+            let shade = TriShade {
                 albedo: [albedo(t[0]), albedo(t[1]), albedo(t[2])],
                 uv,
                 texel_m: if texels > 0.0 {
@@ -176,8 +173,10 @@ impl MeshTracer {
                     0.0
                 },
                 normal,
-            });
-        }
+            };
+            Some((Tri { v0: a, e1, e2 }, shade))
+        });
+        let (tris, shade): (Vec<Tri>, Vec<TriShade>) = prepared.unzip();
         let mut tracer = MeshTracer {
             origin: mesh.origin_m,
             tris: Vec::new(),
