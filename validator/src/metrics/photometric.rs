@@ -42,13 +42,14 @@ fn filter(img: &[f64], w: usize, h: usize) -> Vec<f64> {
         .zip(img.par_chunks(w))
         .for_each_init(Vec::new, |pad, (out, row)| {
             pad.clear();
-            let (first, last) = (row[0], row[w - 1]);
+            let first = row.first().copied().unwrap_or(0.0);
+            let last = row.last().copied().unwrap_or(0.0);
             pad.extend(std::iter::repeat_n(first, r));
             pad.extend_from_slice(row);
             pad.extend(std::iter::repeat_n(last, r));
             for (x, o) in out.iter_mut().enumerate() {
                 let mut s = 0.0;
-                for (kv, v) in k.iter().zip(&pad[x..x + k.len()]) {
+                for (kv, v) in k.iter().zip(pad.get(x..x + k.len()).unwrap_or(&[])) {
                     s += kv * v;
                 }
                 *o = s;
@@ -59,7 +60,10 @@ fn filter(img: &[f64], w: usize, h: usize) -> Vec<f64> {
         o.fill(0.0);
         for (i, kv) in k.iter().enumerate() {
             let yy = (y + i).saturating_sub(r).min(h - 1);
-            for (s, v) in o.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
+            for (s, v) in o
+                .iter_mut()
+                .zip(tmp.get(yy * w..(yy + 1) * w).unwrap_or(&[]))
+            {
                 *s += kv * v;
             }
         }
