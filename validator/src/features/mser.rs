@@ -155,6 +155,18 @@ impl Forest {
     }
 }
 
+/// The 4-neighbours of pixel `i` in a `w`-wide, `h`-high image (`None` past its border): the
+/// connectivity of the component tree and of the regions' floods alike.
+fn neighbours4(i: usize, w: usize, h: usize) -> [Option<usize>; 4] {
+    let (x, y) = (i % w, i / w);
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < w).then(|| i + 1),
+        (y > 0).then(|| i - w),
+        (y + 1 < h).then(|| i + w),
+    ]
+}
+
 /// Builds the component tree of `levels` (pixels join in increasing level).
 fn component_tree(levels: &[u8], w: usize, h: usize) -> Tree {
     let n = w * h;
@@ -200,14 +212,8 @@ fn component_tree(levels: &[u8], w: usize, h: usize) -> Tree {
         orphans.clear();
         for &pix in pixels {
             let i = pix as usize;
-            let (x, y) = (i % w, i / w);
             f.add(i);
-            let neighbours = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ];
+            let neighbours = neighbours4(i, w, h);
             // The root of `pix`'s component, kept across its neighbours (a union returns it).
             let mut a = pix;
             for q in neighbours.into_iter().flatten() {
@@ -375,12 +381,7 @@ impl Flood {
             for (m, v) in mom.iter_mut().zip([xu, yu, xu * xu, xu * yu, yu * yu]) {
                 *m += v;
             }
-            let neighbours = [
-                (x > 0).then(|| i - 1),
-                (x + 1 < w).then(|| i + 1),
-                (y > 0).then(|| i - w),
-                (y + 1 < h).then(|| i + w),
-            ];
+            let neighbours = neighbours4(i, w, h);
             for q in neighbours.into_iter().flatten() {
                 let inside = levels.get(q).is_some_and(|&l| l <= nd.level);
                 if let Some(s) = self.stamp.get_mut(q).filter(|s| inside && **s != stamp) {

@@ -131,19 +131,19 @@ impl Matched {
 }
 
 /// A detector's output on real frame b of a view, with what comparing it with real frame a
-/// gives whatever a render is compared too (SIFT's matches a → b and their RANSAC check).
-/// Both frames are the same for every entry validated, so this is made once per view.
+/// gives whatever a render is compared to (SIFT's matches a → b and their RANSAC check; empty
+/// for detectors without descriptors, at no cost). Both frames are the same for every entry
+/// validated, so this is made once per view.
 #[derive(Debug, Clone)]
 pub struct RepeatFrame {
     detected: Detected,
-    matched: Option<Matched>,
+    matched: Matched,
 }
 
 impl RepeatFrame {
     /// Real frame b's detections `b`, compared with real frame a's `a` (same detector).
     pub fn new(a: &Detected, b: Detected) -> RepeatFrame {
-        let matched =
-            (!a.descriptors.is_empty() || !b.descriptors.is_empty()).then(|| Matched::of(a, &b));
+        let matched = Matched::of(a, &b);
         RepeatFrame {
             detected: b,
             matched,
@@ -195,13 +195,7 @@ pub fn compare(
     let matching = (d == Detector::Sift).then(|| {
         (
             Matched::of(a, s).figures(a, s, &seen, eps),
-            repeat.map(|r| {
-                let b = &r.detected;
-                match &r.matched {
-                    Some(m) => m.figures(a, b, &seen, eps),
-                    None => Matched::of(a, b).figures(a, b, &seen, eps),
-                }
-            }),
+            repeat.map(|r| r.matched.figures(a, &r.detected, &seen, eps)),
         )
     });
     DetectorComparison {
