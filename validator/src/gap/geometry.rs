@@ -553,16 +553,26 @@ fn bicubic(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<f64> {
     // tap columns and rows around it, clamped at the border.
     let (x0, y0) = ((u as usize).min(w - 2), (v as usize).min(h - 2));
     let (wx, wy) = (cubic_weights(u - x0 as f64), cubic_weights(v - y0 as f64));
-    let cols: [usize; 4] = std::array::from_fn(|i| (x0 + i).saturating_sub(1).min(w - 1));
     let rows: [usize; 4] = std::array::from_fn(|j| (y0 + j).saturating_sub(1).min(h - 1) * w);
-    let mut acc = 0.0;
-    for (row, wyj) in rows.iter().zip(&wy) {
-        let mut r = 0.0;
-        for (col, wxi) in cols.iter().zip(&wx) {
-            r += wxi * f64::from(img[row + col]);
+    // Away from the left and right borders a row's four taps are adjacent: one slice, one
+    // bounds check (the sums are the same, in the same order).
+    let row_sum = |row: usize| -> f64 {
+        if x0 >= 1 && x0 + 2 < w {
+            let taps = &img[row + x0 - 1..row + x0 + 3];
+            taps.iter()
+                .zip(&wx)
+                .fold(0.0, |r, (t, wxi)| r + wxi * f64::from(*t))
+        } else {
+            (0..4).fold(0.0, |r, i| {
+                let col = (x0 + i).saturating_sub(1).min(w - 1);
+                r + wx[i] * f64::from(img[row + col])
+            })
         }
-        acc += wyj * r;
-    }
+    };
+    let acc = rows
+        .iter()
+        .zip(&wy)
+        .fold(0.0, |acc, (row, wyj)| acc + wyj * row_sum(*row));
     Some(acc)
 }
 

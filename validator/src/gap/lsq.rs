@@ -62,10 +62,13 @@ fn clamp(p: &mut [f64], lo: &[f64], hi: &[f64]) {
 /// The forward-difference Jacobian, one column per parameter, the columns evaluated in
 /// parallel (each is a full residual evaluation; the values do not depend on the thread count).
 fn jacobian(pb: &Problem<'_>, p: &[f64], r0: &[f64]) -> DMatrix<f64> {
-    let k = p.len();
-    let columns: Vec<Vec<f64>> = (0..k)
-        .into_par_iter()
-        .map(|c| {
+    let (n, k) = (r0.len(), p.len());
+    let mut j = DMatrix::<f64>::zeros(n, k);
+    // Column-major: each column is one contiguous slice, filled by its own residual evaluation.
+    j.as_mut_slice()
+        .par_chunks_mut(n.max(1))
+        .enumerate()
+        .for_each(|(c, column)| {
             let mut q = p.to_vec();
             // Step away from the nearer bound so the trial stays inside.
             let h = if q[c] + pb.step[c] > pb.upper[c] {
@@ -74,12 +77,13 @@ fn jacobian(pb: &Problem<'_>, p: &[f64], r0: &[f64]) -> DMatrix<f64> {
                 pb.step[c]
             };
             q[c] += h;
-            let mut r = Vec::with_capacity(r0.len());
+            let mut r = Vec::with_capacity(n);
             (pb.residuals)(&q, &mut r);
-            r.iter().zip(r0).map(|(a, b)| (a - b) / h).collect()
-        })
-        .collect();
-    DMatrix::from_fn(r0.len(), k, |i, c| columns[c][i])
+            for ((out, a), b) in column.iter_mut().zip(&r).zip(r0) {
+                *out = (a - b) / h;
+            }
+        });
+    j
 }
 
 /// Minimises the sum of squared residuals of `pb`.
@@ -102,6 +106,8 @@ pub fn solve(pb: &Problem<'_>, max_iter: usize) -> Solution {
     let mut lambda = 1e-3;
     let mut jtj = DMatrix::<f64>::zeros(k, k);
     let mut iterations = 0;
+    // Residual buffers of the trial steps, reused (each is as long as `r`).
+    let (mut rt, mut rf) = (Vec::new(), Vec::new());
     for _ in 0..max_iter {
         iterations += 1;
         let j = jacobian(pb, &p, &r);
@@ -119,12 +125,11 @@ pub fn solve(pb: &Problem<'_>, max_iter: usize) -> Solution {
             };
             let mut trial: Vec<f64> = p.iter().zip(delta.iter()).map(|(a, d)| a + d).collect();
             clamp(&mut trial, &pb.lower, &pb.upper);
-            let mut rt = Vec::new();
             (pb.residuals)(&trial, &mut rt);
             let ct = sse(&rt);
             if ct.is_finite() && ct < cost {
                 let gain = (cost - ct) / cost.max(1e-300);
-                let (mut trial, mut rt, mut ct) = (trial, rt, ct);
+                let (mut trial, mut ct) = (trial, ct);
                 // Extrapolate along the accepted step while that still lowers the cost.
                 let mut scale = 2.0;
                 while scale <= MAX_EXTRAPOLATION {
@@ -134,17 +139,17 @@ pub fn solve(pb: &Problem<'_>, max_iter: usize) -> Solution {
                         .map(|(a, d)| a + scale * d)
                         .collect();
                     clamp(&mut further, &pb.lower, &pb.upper);
-                    let mut rf = Vec::new();
                     (pb.residuals)(&further, &mut rf);
                     let cf = sse(&rf);
                     if !(cf.is_finite() && cf < ct) {
                         break;
                     }
-                    (trial, rt, ct) = (further, rf, cf);
+                    std::mem::swap(&mut rt, &mut rf);
+                    (trial, ct) = (further, cf);
                     scale *= 2.0;
                 }
                 p = trial;
-                r = rt;
+                std::mem::swap(&mut r, &mut rt);
                 cost = ct;
                 lambda = (lambda * 0.3).max(1e-9);
                 improved = gain > 1e-10;
