@@ -10,7 +10,7 @@ use super::measure::{self, Metrics};
 use super::select::Candidate;
 use super::stages::geometry::geometric_masks;
 use super::stages::texture::TextureInputs;
-use super::views::{load_views, predict, GapView, Prediction};
+use super::views::{load_views, predict, predict_relit, GapView, Prediction};
 use super::{markers, param_map, shadows, texture, GapOptions, Named, ScoredCandidate};
 use crate::render::{Geometry, Light, Scene};
 use crate::sensor::{Effect, SensorModel};
@@ -150,14 +150,15 @@ impl<'a> Ctx<'a> {
             azimuth_deg: self.light.azimuth_deg,
             elevation_deg: self.light.elevation_deg,
         });
-        let (lit, shadowed) = (
-            self.predict_sampled(&lit, 1),
-            self.predict_sampled(&shadowed, 1),
-        );
+        // Both from one set of camera rays' first hits: the same bytes as two renders.
         self.views
             .iter()
-            .zip(lit.iter().zip(&shadowed))
-            .map(|(v, (l, s))| shadows::shadow_pixels(&l.dn, &s.dn, &l.mask, v.width, v.height))
+            .map(|v| {
+                let hits = lit.primary_hits(&self.scene, &v.camera_model, &v.at, 1);
+                let l = predict_relit(&self.scene, &self.light, v, &lit, &hits);
+                let s = predict_relit(&self.scene, &self.light, v, &shadowed, &hits);
+                shadows::shadow_pixels(&l.dn, &s.dn, &l.mask, v.width, v.height)
+            })
             .collect()
     }
 

@@ -22,6 +22,7 @@
 //! zero mean, so the photometric RMS against the expected render stays). A gap run's headline
 //! is the figure its named effects are read on ([`Figure::headline`]).
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::geometry;
@@ -251,6 +252,64 @@ fn bright_level(shading: &[f32], mask: &[bool]) -> Option<f64> {
     (level > 0.0).then_some(level)
 }
 
+/// One view's part of [`measure`] that needs no running sums.
+struct PerView {
+    /// The real frames' mean.
+    real: Vec<f32>,
+    /// The render's terrain, eroded by 4 px: the pixels measured.
+    mask: Vec<bool>,
+    /// Log ratio of the radial spectra of the render with the model's noise and of one real
+    /// frame.
+    log_ratio: Vec<f64>,
+    /// The alignment residual and the number of samples it is the mean of.
+    align: f64,
+    align_n: usize,
+}
+
+impl PerView {
+    /// View `k`, `v`, predicted as `p` by `model`, `radiance` its render with the model's
+    /// texture detail (or the plain one), `align_mask` the terrain its alignment samples.
+    fn new(
+        k: usize,
+        v: &GapView,
+        p: &Prediction,
+        model: &SensorModel,
+        radiance: &[f32],
+        align_mask: Option<&Vec<bool>>,
+    ) -> PerView {
+        let (w, h) = (v.width, v.height);
+        let real = v.mean();
+        // Spectrum of the render with the model's noise against one real frame.
+        let sim = model.image(radiance, w, h, &v.camera_model, 0x9a9 + k as u64);
+        let log_ratio = log_ratio(
+            &radial_spectrum(&sim, w, h, BINS),
+            &radial_spectrum(&v.frames[0], w, h, BINS),
+        );
+        let band = geometry::LEVELS[geometry::LEVELS.len() - 1];
+        let (img, obs) = geometry::prepare(
+            0,
+            0,
+            &p.dn,
+            &real,
+            align_mask.unwrap_or(&p.mask),
+            &p.depth,
+            &p.camera,
+            v.at.rig_from_camera,
+            w,
+            h,
+            band,
+        );
+        let align = geometry::mse(&obs, std::slice::from_ref(&img), &[0.0; 8]);
+        PerView {
+            mask: erode(&p.mask, w, h, 4),
+            real,
+            log_ratio,
+            align,
+            align_n: obs.len(),
+        }
+    }
+}
+
 /// Measures the disagreement of `preds` (made with `model`) against the real `views`;
 /// `shadow[k]` marks view `k`'s pixels in cast shadow of the campaign light. `detailed[k]`,
 /// when given, is view `k`'s radiance rendered with the model's texture detail
@@ -277,10 +336,16 @@ pub fn measure(
     let mut by_radius = Binned::default();
     let mut by_light = Binned::default();
     let mut noise_pairs = Vec::new();
-    let masks: Vec<Vec<bool>> = views
-        .iter()
+    // What each view needs apart from the per-pixel sums, made for the views in parallel: the
+    // sums below then run over the views in order, so the figures do not depend on threads.
+    let per_view: Vec<PerView> = views
+        .par_iter()
         .zip(preds)
-        .map(|(v, p)| erode(&p.mask, v.width, v.height, 4))
+        .enumerate()
+        .map(|(k, (v, p))| {
+            let radiance = detailed.and_then(|d| d.get(k)).unwrap_or(&p.radiance);
+            PerView::new(k, v, p, model, radiance, align_mask.get(k))
+        })
         .collect();
     let mut int_sum = [(0.0f64, 0.0f64); BINS];
     let mut int_n = [0usize; BINS];
@@ -288,10 +353,9 @@ pub fn measure(
     let (mut align_sum, mut align_n) = (0.0, 0usize);
     let (mut shadow_sq, mut shadow_n) = (0.0, 0usize);
     let mut figures = Vec::new();
-    for (k, (v, p)) in views.iter().zip(preds).enumerate() {
+    for (k, ((v, p), pv)) in views.iter().zip(preds).zip(&per_view).enumerate() {
         let (w, h) = (v.width, v.height);
-        let real = v.mean();
-        let mask = &masks[k];
+        let (real, mask) = (&pv.real, &pv.mask);
         if let [a, b, ..] = v.frames.as_slice() {
             noise_pairs.push((a.as_slice(), b.as_slice(), mask.as_slice()));
         }
@@ -345,33 +409,12 @@ pub fn measure(
         shadow_sq += view_shadow_sq - noise_var / frames * view_shadow_n as f64;
         shadow_n += view_shadow_n;
         n += vn;
-        // Spectrum of the render with the model's noise against one real frame.
-        let radiance = detailed.and_then(|d| d.get(k)).unwrap_or(&p.radiance);
-        let sim = model.image(radiance, w, h, cam, 0x9a9 + k as u64);
-        let lr = log_ratio(
-            &radial_spectrum(&sim, w, h, BINS),
-            &radial_spectrum(&v.frames[0], w, h, BINS),
-        );
-        for (s, x) in spectrum.iter_mut().zip(&lr) {
+        for (s, x) in spectrum.iter_mut().zip(&pv.log_ratio) {
             *s += x / views.len().max(1) as f64;
         }
-        let band = geometry::LEVELS[geometry::LEVELS.len() - 1];
-        let (img, obs) = geometry::prepare(
-            0,
-            0,
-            &p.dn,
-            &real,
-            align_mask.get(k).unwrap_or(&p.mask),
-            &p.depth,
-            &p.camera,
-            v.at.rig_from_camera,
-            w,
-            h,
-            band,
-        );
-        let align = geometry::mse(&obs, std::slice::from_ref(&img), &[0.0; 8]);
-        align_sum += align * obs.len() as f64;
-        align_n += obs.len();
+        let align = pv.align;
+        align_sum += align * pv.align_n as f64;
+        align_n += pv.align_n;
         figures.push(ViewFigures {
             capture: v.capture.clone(),
             camera: v.camera.clone(),
