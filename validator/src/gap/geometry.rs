@@ -83,8 +83,8 @@ pub const LEVELS: [[f64; 2]; 2] = [[3.0, 12.0], [1.5, 8.0]];
 /// at the coarse level's 6 px (f = 1/12 px⁻¹ is its Nyquist frequency) what sampling folds back
 /// is under 30 % in amplitude at the Nyquist frequency and falls fast above it: denser samples
 /// of a band this smooth repeat each other. The coarse level only starts the fine one, which
-/// decides every figure. estec seed 11, `laser/0.015`: the coarse level was half the stage's
-/// time at 3 px.
+/// decides every figure (at 3 px it took as long as the fine level: ARCHITECTURE's
+/// performance section).
 fn sample_stride(band: [f64; 2]) -> usize {
     (2.0 * band[0]).round().max(1.0) as usize
 }

@@ -323,10 +323,10 @@ pub fn measure_model_on(
 }
 
 /// The workflow's steps in the order they run, each with its share of a run's time, for
-/// [`run_observed`]'s progress: as measured on estec (seed 11, nothing hidden, `laser/0.015`,
-/// two cores, 2 min 38 s: 37.5, 86.9, 3.8, 7.2, 10.0, 5.9, 0.05 and 6.8 s); the shares move
-/// with what a campaign hides (a stage that names nothing stops early; with a blur hidden the
-/// blur stage took 14 s, with shadows the shadows stage 5 min, on seed 2).
+/// [`run_observed`]'s progress: as measured on the estec preset (nothing hidden,
+/// `laser/0.015`, two cores, 2 min 38 s: 37.5, 86.9, 3.8, 7.2, 10.0, 5.9, 0.05 and 6.8 s); the
+/// shares move with what a campaign hides (a stage that names nothing stops early; a hidden
+/// blur or cast shadows lengthen their own stage, the shadows stage to minutes).
 pub const STEPS: [(&str, f64); 8] = [
     ("loading and measuring the gap", 0.237),
     ("geometry: distortion, pose bias", 0.549),
