@@ -283,12 +283,12 @@ pub fn upsample2(img: &GreyF32) -> GreyF32 {
         let i1 = (i0 + 1).min(n - 1);
         (i0, i1, s - i0 as f32)
     };
+    let columns: Vec<(usize, usize, f32)> = (0..w).map(|x| taps(x, img.width)).collect();
     let mut data = vec![0.0f32; w * h];
     data.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
         let (y0, y1, fy) = taps(y, img.height);
         let (r0, r1) = (img.row(y0), img.row(y1));
-        for (x, o) in out.iter_mut().enumerate() {
-            let (x0, x1, fx) = taps(x, img.width);
+        for (o, &(x0, x1, fx)) in out.iter_mut().zip(&columns) {
             let g = |r: &[f32], i: usize| r.get(i).copied().unwrap_or(0.0);
             let top = g(r0, x0) * (1.0 - fx) + g(r0, x1) * fx;
             let bottom = g(r1, x0) * (1.0 - fx) + g(r1, x1) * fx;

@@ -215,30 +215,45 @@ fn px(d: &[GreyF32], l: usize, r: usize, c: usize) -> f32 {
 /// `≥` (or `≤`) all 26 neighbours in the 3×3×3 block, `BORDER` pixels from the sides.
 fn extrema_in_row(d: &[GreyF32], l: usize, r: usize, threshold: f32) -> Vec<usize> {
     let row = |ll: usize, rr: usize| d.get(ll).map(|im| im.row(rr)).unwrap_or(&[]);
-    // The nine rows of the block: layers l-1..=l+1 × rows r-1..=r+1.
-    let block: Vec<&[f32]> = (0..9).map(|i| row(l + i / 3 - 1, r + i % 3 - 1)).collect();
     let centre = row(l, r);
     let w = centre.len();
-    let at = |s: &[f32], c: usize| s.get(c).copied().unwrap_or(0.0);
-    (BORDER..w.saturating_sub(BORDER))
-        .filter(|&c| {
-            let v = at(centre, c);
-            if v.is_nan() || v.abs() <= threshold {
-                return false;
-            }
-            let (left, right) = (at(centre, c - 1), at(centre, c + 1));
-            let all = |f: &dyn Fn(f32) -> bool| {
-                block
-                    .iter()
-                    .all(|s| f(at(s, c - 1)) && f(at(s, c)) && f(at(s, c + 1)))
-            };
-            if v > 0.0 {
-                v >= left && v >= right && all(&|u| v >= u)
-            } else {
-                v <= left && v <= right && all(&|u| v <= u)
-            }
-        })
-        .collect()
+    // The nine rows of the block, the centre's first (its neighbours reject most candidates):
+    // layers l-1..=l+1 × rows r-1..=r+1; a missing row reads as zeros.
+    let rows: [&[f32]; 9] =
+        std::array::from_fn(|i| row(l + (i + 4) % 9 / 3 - 1, r + (i + 4) % 9 % 3 - 1));
+    let zeros = if rows.iter().any(|s| s.len() != w) {
+        vec![0.0; w]
+    } else {
+        Vec::new()
+    };
+    let block = rows.map(|s| if s.len() == w { s } else { zeros.as_slice() });
+    let mut found = Vec::new();
+    for c in BORDER..w.saturating_sub(BORDER) {
+        let Some(&v) = centre.get(c) else {
+            continue;
+        };
+        if v.is_nan() || v.abs() <= threshold {
+            continue;
+        }
+        let extremum = if v > 0.0 {
+            block_all(&block, c, |u| v >= u)
+        } else {
+            block_all(&block, c, |u| v <= u)
+        };
+        if extremum {
+            found.push(c);
+        }
+    }
+    found
+}
+
+/// Whether `keeps` holds for columns `c - 1..=c + 1` of every row of `block`.
+#[inline(always)]
+fn block_all(block: &[&[f32]; 9], c: usize, keeps: impl Fn(f32) -> bool) -> bool {
+    block.iter().all(|s| {
+        s.get(c - 1..c + 2)
+            .is_some_and(|t| t.iter().all(|&u| keeps(u)))
+    })
 }
 
 /// Solves the 3×3 system `a x = b` (Cramer's rule in `f64`); zeros if singular.
