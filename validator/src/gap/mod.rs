@@ -91,7 +91,8 @@ pub struct GapOptions {
     /// Only these cameras (all when empty); one camera of a stereo head runs the workflow as
     /// for a lone camera (no stereo pairs).
     pub cameras: Vec<String>,
-    /// Render supersampling per axis.
+    /// Render supersampling per axis, at the pixels where it changes the render
+    /// ([`crate::render::Sampling::Edges`]).
     pub supersample: u32,
     /// Minimum held-out share of the stage error an effect must explain to be named.
     pub min_share: f64,

@@ -14,7 +14,7 @@ use regolith_format::camera_model::CameraModel;
 use regolith_reader::captures::ImageKind;
 use regolith_reader::{ReaderError, ReleaseView};
 
-use crate::render::{Light, PrimaryHits, Scene};
+use crate::render::{Light, PrimaryHits, Sampling, Scene};
 use crate::sensor::{Placement, SensorModel, SensorRender};
 use crate::validate::grey;
 
@@ -159,7 +159,10 @@ fn known(names: &[String], have: &[&String], what: &str) -> Result<(), ReaderErr
     }
 }
 
-/// Renders `v` through `model` without noise (see the module docs).
+/// Renders `v` through `model` without noise (see the module docs), with `supersample` ×
+/// `supersample` samples where they change the pixel ([`Sampling::Edges`], as `validate`
+/// renders): a pixel whose centre ray sees what its neighbours' see, within one digital
+/// number of shading, is one sample with its texture filtered over the pixel.
 pub fn predict(
     scene: &Scene<'_>,
     light: &Light,
@@ -167,7 +170,8 @@ pub fn predict(
     model: &SensorModel,
     supersample: u32,
 ) -> Prediction {
-    Prediction::from(model.render(scene, light, &v.camera_model, &v.at, supersample, None))
+    let sampling = Sampling::Edges(supersample);
+    Prediction::from(model.render(scene, light, &v.camera_model, &v.at, sampling, None))
 }
 
 /// [`predict`] at supersample 1 from the view's camera rays' first `hits`, traced under a
