@@ -591,6 +591,17 @@ fn bicubic(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<f64> {
 /// units) for full parameters `p`; a point that leaves the image compares with 0 (the band's
 /// mean).
 pub fn residuals(obs: &[Observation], views: &[ViewImages], p: &[f64; 8], out: &mut Vec<f64>) {
+    residuals_of_runs(&[obs], views, p, out);
+}
+
+/// [`residuals`] of the observations of `runs` one after the other: a subset of a level's
+/// observations (every fold but one) without copying them.
+pub fn residuals_of_runs(
+    runs: &[&[Observation]],
+    views: &[ViewImages],
+    p: &[f64; 8],
+    out: &mut Vec<f64>,
+) {
     out.clear();
     let (dist, bias) = effects_of(p);
     let bias = SensorModel {
@@ -619,19 +630,33 @@ pub fn residuals(obs: &[Observation], views: &[ViewImages], p: &[f64; 8], out: &
             .and_then(|q| bicubic(&v.real, v.width, v.height, q[0], q[1]))
             .unwrap_or(0.0)
     };
-    obs.par_iter()
-        .map(|o| {
-            if let Some((axis, target)) = o.target {
-                let q = cams[o.view].project(moved[o.view].apply(o.point));
-                return o.weight * q.map_or(0.0, |q| q[axis] - target);
-            }
-            let other = match o.mate {
-                None => o.value,
-                Some((view, point)) => real_at(view, point),
-            };
-            o.weight * (real_at(o.view, o.point) - other)
-        })
-        .collect_into_vec(out);
+    let residual = |o: &Observation| {
+        if let Some((axis, target)) = o.target {
+            let q = cams[o.view].project(moved[o.view].apply(o.point));
+            return o.weight * q.map_or(0.0, |q| q[axis] - target);
+        }
+        let other = match o.mate {
+            None => o.value,
+            Some((view, point)) => real_at(view, point),
+        };
+        o.weight * (real_at(o.view, o.point) - other)
+    };
+    if let [obs] = runs {
+        obs.par_iter().map(residual).collect_into_vec(out);
+        return;
+    }
+    let mut part = Vec::new();
+    for obs in runs {
+        obs.par_iter().map(residual).collect_into_vec(&mut part);
+        out.extend_from_slice(&part);
+    }
+}
+
+/// The runs of consecutive observations of `obs` that `keep` keeps, in order.
+pub fn kept_runs(obs: &[Observation], keep: impl Fn(&Observation) -> bool) -> Vec<&[Observation]> {
+    obs.chunk_by(|a, b| keep(a) == keep(b))
+        .filter(|run| run.first().is_some_and(&keep))
+        .collect()
 }
 
 /// A fit of a subset.
@@ -654,6 +679,17 @@ pub fn fit(
     radial_terms: usize,
     start: &[f64; 8],
 ) -> GeometryFit {
+    fit_runs(&[obs], views, effects, radial_terms, start)
+}
+
+/// [`fit`] to the observations of `runs` (see [`residuals_of_runs`]).
+pub fn fit_runs(
+    runs: &[&[Observation]],
+    views: &[ViewImages],
+    effects: &[&str],
+    radial_terms: usize,
+    start: &[f64; 8],
+) -> GeometryFit {
     let idx = free(effects, radial_terms);
     let expand = |q: &[f64]| {
         let mut p = *start;
@@ -662,7 +698,7 @@ pub fn fit(
         }
         p
     };
-    let f = |q: &[f64], out: &mut Vec<f64>| residuals(obs, views, &expand(q), out);
+    let f = |q: &[f64], out: &mut Vec<f64>| residuals_of_runs(runs, views, &expand(q), out);
     let s = solve(
         &Problem {
             residuals: &f,

@@ -573,10 +573,10 @@ pub(crate) fn fit_levels(
     let mut start = [0.0; 8];
     let mut last = None;
     for (level, (imgs, obs)) in levels.iter().enumerate() {
-        let train: Vec<_> = obs.iter().filter(|o| keep(o, imgs)).copied().collect();
-        let mut f = geometry::fit(&train, imgs, set, 1, &start);
+        let train = geometry::kept_runs(obs, |o| keep(o, imgs));
+        let mut f = geometry::fit_runs(&train, imgs, set, 1, &start);
         if radial_terms > 1 && set.contains(&"distortion") && level + 1 == levels.len() {
-            f = geometry::fit(&train, imgs, set, radial_terms, &f.params);
+            f = geometry::fit_runs(&train, imgs, set, radial_terms, &f.params);
         }
         start = f.params;
         last = Some(f);
