@@ -325,18 +325,18 @@ pub fn measure_model_on(
 
 /// The workflow's steps in the order they run, each with its share of a run's time, for
 /// [`run_observed`]'s progress: as measured on the estec preset (nothing hidden,
-/// `laser/0.015`, two cores, 2 min 38 s: 37.5, 86.9, 3.8, 7.2, 10.0, 5.9, 0.05 and 6.8 s); the
+/// `laser/0.015`, two cores, 2 min 14 s: 23.5, 75.0, 4.1, 6.5, 11.1, 7.0, 0.1 and 6.9 s); the
 /// shares move with what a campaign hides (a stage that names nothing stops early; a hidden
 /// blur or cast shadows lengthen their own stage, the shadows stage to minutes).
 pub const STEPS: [(&str, f64); 8] = [
-    ("loading and measuring the gap", 0.237),
-    ("geometry: distortion, pose bias", 0.549),
-    ("blur", 0.024),
-    ("photometry: response, exposure, vignetting", 0.046),
-    ("shadows", 0.063),
-    ("texture", 0.037),
+    ("loading and measuring the gap", 0.175),
+    ("geometry: distortion, pose bias", 0.559),
+    ("blur", 0.031),
+    ("photometry: response, exposure, vignetting", 0.048),
+    ("shadows", 0.083),
+    ("texture", 0.052),
     ("noise", 0.001),
-    ("measuring the gap after", 0.043),
+    ("measuring the gap after", 0.051),
 ];
 
 /// Reports the start of each of [`STEPS`] with the share of the run done before it.
