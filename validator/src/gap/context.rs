@@ -73,7 +73,8 @@ pub(crate) fn jackknife(
     if n_folds < 2 {
         return None;
     }
-    jackknife_spread(&(0..n_folds).map(fit).collect::<Vec<_>>())
+    // In parallel, kept in fold order (see [`cross_validate`]).
+    jackknife_spread(&(0..n_folds).into_par_iter().map(fit).collect::<Vec<_>>())
 }
 
 /// The jackknife standard errors of leave-one-fold-out `fits` (see [`jackknife`]); `None` with

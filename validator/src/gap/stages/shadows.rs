@@ -213,7 +213,8 @@ impl DirectionCache {
         let dn = Arc::new(render());
         if let Ok(mut k) = self.kept.lock() {
             let bytes = dn.len() * std::mem::size_of::<f32>();
-            if k.1 + bytes <= CACHE_BYTES {
+            // Another fold's search may have made the same image meanwhile.
+            if !k.0.contains_key(&key) && k.1 + bytes <= CACHE_BYTES {
                 k.1 += bytes;
                 k.0.insert(key, dn.clone());
             }
