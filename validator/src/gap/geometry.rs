@@ -641,14 +641,8 @@ pub fn residuals_of_runs(
         };
         o.weight * (real_at(o.view, o.point) - other)
     };
-    if let [obs] = runs {
-        obs.par_iter().map(residual).collect_into_vec(out);
-        return;
-    }
-    let mut part = Vec::new();
     for obs in runs {
-        obs.par_iter().map(residual).collect_into_vec(&mut part);
-        out.extend_from_slice(&part);
+        out.par_extend(obs.par_iter().map(residual));
     }
 }
 
