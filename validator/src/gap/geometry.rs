@@ -110,25 +110,70 @@ pub struct ViewImages {
     pub real_sd: f32,
 }
 
-/// One sampled render pixel.
+/// One sampled render pixel (72 bytes: every evaluation of a fit streams them all).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
     /// Index of the view.
     pub view: usize,
     /// Camera-frame point of the render's camera, metres.
     pub point: [f64; 3],
-    /// Band-passed, normalised render value there.
-    pub value: f64,
-    /// The other view of the stereo head where it sees the same terrain point, and the point
-    /// in that view's render camera frame: the residual is then the real image of `view`
-    /// minus the real image of the mate ([`stereo_pairs`]), and `value` is unused.
-    pub mate: Option<(usize, [f64; 3])>,
     /// Weight of the residual.
     pub weight: f64,
-    /// A survey marker sighted in the real image of `view` ([`super::markers::sight`]), `point`
-    /// its centre: the residual is the centre's projection's coordinate `.0` (0: x, 1: y)
-    /// minus the sighting's, `.1` (pixels), and `value` and `mate` are unused.
-    pub target: Option<(usize, f64)>,
+    /// What the real image of `view` at `point` is compared with.
+    pub against: Against,
+}
+
+/// What an [`Observation`] compares the real image of its view with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Against {
+    /// The band-passed, normalised render value there.
+    Render(f64),
+    /// The real image of another view of the stereo head where it sees the same terrain
+    /// point (its index, and the point in that view's render camera frame): the residual is
+    /// the real image of `view` minus the real image of the mate ([`stereo_pairs`]).
+    Mate(u32, [f64; 3]),
+    /// A survey marker sighted in the real image of `view` ([`super::markers::sight`]), the
+    /// observation's point its centre: the residual is the centre's projection's coordinate
+    /// (axis 0: x, 1: y) minus the sighting's, in pixels.
+    Sighting(u8, f64),
+}
+
+impl Observation {
+    /// A render sample of `view`.
+    pub fn render(view: usize, point: [f64; 3], value: f64) -> Observation {
+        Observation {
+            view,
+            point,
+            weight: 1.0,
+            against: Against::Render(value),
+        }
+    }
+
+    /// `o`'s point compared with the real image of view `mate` at `mate_point`.
+    pub fn paired(o: &Observation, mate: usize, mate_point: [f64; 3]) -> Observation {
+        Observation {
+            weight: 1.0,
+            // View indices are far below u32::MAX (a release holds a few hundred views).
+            against: Against::Mate(u32::try_from(mate).unwrap_or(u32::MAX), mate_point),
+            ..*o
+        }
+    }
+
+    /// The mate's view and point, when the observation pairs two real images.
+    pub fn mate(&self) -> Option<(usize, [f64; 3])> {
+        match self.against {
+            Against::Mate(b, pc) => Some((b as usize, pc)),
+            _ => None,
+        }
+    }
+
+    /// The sighting's axis and pixel coordinate, when the observation is a marker's.
+    pub fn sighting(&self) -> Option<(usize, f64)> {
+        match self.against {
+            Against::Sighting(axis, px) => Some((usize::from(axis), px)),
+            _ => None,
+        }
+    }
 }
 
 /// The difference of Gaussians `band` of `v` over the terrain `mask` (outside it the image is
@@ -255,14 +300,11 @@ pub fn prepare(
                 continue;
             }
             let (xn, yn) = camera.unproject(x as f64, y as f64);
-            obs.push(Observation {
+            obs.push(Observation::render(
                 view,
-                point: [xn * z, yn * z, z],
-                value: f64::from(rb[i]),
-                mate: None,
-                weight: 1.0,
-                target: None,
-            });
+                [xn * z, yn * z, z],
+                f64::from(rb[i]),
+            ));
         }
     }
     (
@@ -330,21 +372,14 @@ pub fn stereo_pairs(
     let inner = inner_masks(views, mask);
     let seen = &depth_views(views, poses, depth, &inner);
     obs.par_iter()
-        .filter(|o| o.mate.is_none())
+        .filter(|o| o.mate().is_none())
         .flat_map_iter(|o| {
             let ground = poses[o.view].transform_point(o.point);
             ((o.view + 1)..views.len())
                 .filter(move |&b| views[b].fold == views[o.view].fold)
                 .filter_map(move |b| {
                     let (pc, _, _) = seen[b].sees(ground, EDGE_MARGIN)?;
-                    Some(Observation {
-                        view: o.view,
-                        point: o.point,
-                        value: 0.0,
-                        mate: Some((b, pc)),
-                        weight: 1.0,
-                        target: None,
-                    })
+                    Some(Observation::paired(o, b, pc))
                 })
         })
         .collect()
@@ -392,7 +427,7 @@ pub fn cross_pairs(
     // Pairs with their mate's (view, scale step), the best-matched scales first.
     let tagged: Vec<(Observation, (usize, i32))> = obs
         .par_iter()
-        .filter(|o| o.mate.is_none())
+        .filter(|o| o.mate().is_none())
         .flat_map_iter(|o| {
             let ground = poses[o.view].transform_point(o.point);
             let a = &views[o.view];
@@ -402,15 +437,7 @@ pub fn cross_pairs(
                     let (pc, _, _) = seen[b].sees(ground, EDGE_MARGIN)?;
                     let s = (views[b].camera.fx / pc[2]) / (a.camera.fx / o.point[2]);
                     let k = (CROSS_STEPS * s.log2()).round() as i32;
-                    (k.abs() <= CROSS_MAX_STEP).then_some((
-                        Observation {
-                            mate: Some((b, pc)),
-                            value: 0.0,
-                            weight: 1.0,
-                            ..*o
-                        },
-                        (b, k),
-                    ))
+                    (k.abs() <= CROSS_MAX_STEP).then_some((Observation::paired(o, b, pc), (b, k)))
                 })
                 .collect();
             mates.sort_by_key(|(_, (b, k))| (k.abs(), *b));
@@ -452,9 +479,9 @@ pub fn cross_pairs(
         .into_iter()
         .map(|(o, tag)| {
             let at = used.binary_search(&tag).unwrap_or_else(|i| i);
-            Observation {
-                mate: o.mate.map(|(_, pc)| (n + at, pc)),
-                ..o
+            match o.mate() {
+                Some((_, pc)) => Observation::paired(&o, n + at, pc),
+                None => o,
             }
         })
         .collect();
@@ -631,13 +658,13 @@ pub fn residuals_of_runs(
             .unwrap_or(0.0)
     };
     let residual = |o: &Observation| {
-        if let Some((axis, target)) = o.target {
-            let q = cams[o.view].project(moved[o.view].apply(o.point));
-            return o.weight * q.map_or(0.0, |q| q[axis] - target);
-        }
-        let other = match o.mate {
-            None => o.value,
-            Some((view, point)) => real_at(view, point),
+        let other = match o.against {
+            Against::Render(value) => value,
+            Against::Mate(view, point) => real_at(view as usize, point),
+            Against::Sighting(axis, target) => {
+                let q = cams[o.view].project(moved[o.view].apply(o.point));
+                return o.weight * q.map_or(0.0, |q| q[usize::from(axis)] - target);
+            }
         };
         o.weight * (real_at(o.view, o.point) - other)
     };
@@ -935,7 +962,7 @@ mod tests {
         assert!(pairs.len() > obs.len() / 4, "{} pairs", pairs.len());
         assert!(pairs
             .iter()
-            .all(|p| p.mate.map(|m| m.0) == Some(1) && p.view == 0));
+            .all(|p| p.mate().map(|m| m.0) == Some(1) && p.view == 0));
         // With the true geometry the two real images agree (up to resampling).
         assert!(mse(&pairs, &views, &[0.0; 8]) < 1e-3);
         for dk1 in [-0.04, 0.03] {

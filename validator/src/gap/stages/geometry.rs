@@ -253,13 +253,11 @@ pub(crate) fn marker_observations(
                         .then(|| (from_ground.transform_point(m.centre_m), s.pixel))
                 })
                 .flat_map(|(point, pixel)| {
-                    (0..2).map(move |axis| geometry::Observation {
+                    (0..2u8).map(move |axis| geometry::Observation {
                         view: i,
                         point,
-                        value: 0.0,
-                        mate: None,
                         weight,
-                        target: Some((axis, pixel[axis])),
+                        against: geometry::Against::Sighting(axis, pixel[usize::from(axis)]),
                     })
                 })
                 .collect::<Vec<_>>()
@@ -269,17 +267,17 @@ pub(crate) fn marker_observations(
 
 /// Whether `o` samples or pairs a view of capture `fold`.
 fn touches(o: &geometry::Observation, imgs: &[geometry::ViewImages], fold: usize) -> bool {
-    imgs[o.view].fold == fold || o.mate.is_some_and(|(b, _)| imgs[b].fold == fold)
+    imgs[o.view].fold == fold || o.mate().is_some_and(|(b, _)| imgs[b].fold == fold)
 }
 
 /// Whether `o` samples or pairs views of capture `fold` alone.
 fn within(o: &geometry::Observation, imgs: &[geometry::ViewImages], fold: usize) -> bool {
-    imgs[o.view].fold == fold && o.mate.is_none_or(|(b, _)| imgs[b].fold == fold)
+    imgs[o.view].fold == fold && o.mate().is_none_or(|(b, _)| imgs[b].fold == fold)
 }
 
 /// Whether `o` pairs views of two captures ([`geometry::cross_pairs`]).
 pub(crate) fn is_cross(o: &geometry::Observation, imgs: &[geometry::ViewImages]) -> bool {
-    o.mate
+    o.mate()
         .is_some_and(|(b, _)| imgs[b].fold != imgs[o.view].fold)
 }
 
