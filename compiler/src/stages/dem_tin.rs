@@ -166,29 +166,42 @@ pub fn build_tin_thinned(
 }
 
 /// Indices (ascending, so still x-sorted) of one vertex per `cell`-sided square of the plane:
-/// the one nearest the square's centre, the lowest index among equally near ones.
+/// the one nearest the square's centre, the lowest index among equally near ones. The vertices
+/// being x-sorted, each column of squares is a run of them, thinned on its own.
 fn thinned(vertices: &[[f64; 3]], cell: f64) -> Vec<u32> {
-    let mut keyed: Vec<(i64, i64, f64, u32)> = vertices
+    let column = |v: &[f64; 3]| (v[0] / cell).floor();
+    let mut runs: Vec<(usize, &[[f64; 3]])> = Vec::new();
+    let mut start = 0;
+    for run in vertices.chunk_by(|a, b| column(a) == column(b)) {
+        runs.push((start, run));
+        start += run.len();
+    }
+    let kept: Vec<Vec<u32>> = runs
         .par_iter()
-        .zip(0u32..u32::MAX)
-        .map(|(v, i)| {
-            let (cx, cy) = ((v[0] / cell).floor(), (v[1] / cell).floor());
-            let (dx, dy) = (v[0] - (cx + 0.5) * cell, v[1] - (cy + 0.5) * cell);
-            (cx as i64, cy as i64, dx * dx + dy * dy, i)
+        .map(|&(start, run)| {
+            let mut keyed: Vec<(f64, f64, usize)> = run
+                .iter()
+                .enumerate()
+                .map(|(k, v)| {
+                    let (cx, cy) = (column(v), (v[1] / cell).floor());
+                    let (dx, dy) = (v[0] - (cx + 0.5) * cell, v[1] - (cy + 0.5) * cell);
+                    (cy, dx * dx + dy * dy, start + k)
+                })
+                .collect();
+            keyed.sort_unstable_by(|a, b| {
+                a.0.total_cmp(&b.0)
+                    .then(a.1.total_cmp(&b.1))
+                    .then(a.2.cmp(&b.2))
+            });
+            let mut keep: Vec<u32> = keyed
+                .chunk_by(|a, b| a.0 == b.0)
+                .filter_map(|g| g.first().map(|k| k.2 as u32))
+                .collect();
+            keep.sort_unstable();
+            keep
         })
         .collect();
-    keyed.par_sort_unstable_by(|a, b| {
-        (a.0, a.1)
-            .cmp(&(b.0, b.1))
-            .then(a.2.total_cmp(&b.2))
-            .then(a.3.cmp(&b.3))
-    });
-    let mut keep: Vec<u32> = keyed
-        .chunk_by(|a, b| (a.0, a.1) == (b.0, b.1))
-        .filter_map(|g| g.first().map(|k| k.3))
-        .collect();
-    keep.par_sort_unstable();
-    keep
+    kept.concat()
 }
 
 /// Puts every triangle's lowest vertex index first (a rotation, so still counter-clockwise) and
