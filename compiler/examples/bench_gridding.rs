@@ -5,8 +5,7 @@
 //! Generates the synthetic laser terrain of `bench_dem` (`common/mod.rs`: ~4 M points by default,
 //! `--points N`, jittered around a square grid over 8.7 × 8.6 m, 8 mm range noise, per-point
 //! albedo) and runs the laser DEM exactly as `regolith compile` does (`compile::laser_terrain`):
-//! `dem.tin` (`build_tin_thinned` of the points and their albedo, one triangulated vertex per
-//! `TIN_THIN_CELLS` of the finest cell), then `dem.raster` with the long-edge
+//! `dem.tin` (`build_tin` of the points and their albedo), then `dem.raster` with the long-edge
 //! limit `MaxEdge::Absolute(LASER_MAX_EDGE_M)`, base −0.1 m, at most 2^28 cells, no crop, and local regression
 //! over `DEM_REGRESSION_SPACINGS` median TIN edges, at the compile's five cell sizes (`--cells`).
 //! Each cell size is a separate `rasterize_all` call, timed alone; its time includes the per-call
@@ -15,13 +14,12 @@
 //! checked to be bit-identical to the per-cell ones (every raster depends only on the TIN and its
 //! cell). `--heights-only` drops the albedo (the TIN and rasters then carry heights only, as the
 //! peer's do); `--tin-only` skips the regression (plain TIN interpolation at the cell centres, as
-//! the peer's linear gridding does, over a TIN of every point as the peer's: a diagnostic, not
-//! what the compile runs); `--threads N` sizes
+//! the peer's linear gridding does: a diagnostic, not what the compile runs); `--threads N` sizes
 //! rayon's pool (default: all cores).
 //!
 //! Prints per cell: seconds, valid cells, fallback cells of the regression, and the height RMS and
 //! max |error| against the true surface over the valid cells. With `--export DIR` it also writes
-//! `points.f64` (the points as little-endian f64 x, y, z, in the order given to `dem.tin`),
+//! `points.f64` (the points as little-endian f64 x, y, z, in the order given to `build_tin`),
 //! `grid.json` (per raster: cell, rows, cols, origin = centre of the north-west cell, bounds, and
 //! the file names), `truth_<cell>.f32` (the true surface at each cell centre, row-major, row 0 =
 //! north), `ours_<cell>.f32` (our heights, NaN = nodata) and `ours.json` (our timings and errors).
@@ -38,9 +36,9 @@ use std::time::Instant;
 
 use common::{cloud, Scene, EXTENT, NOISE_M};
 use rayon::prelude::*;
-use regolith_compiler::compile::{DEM_REGRESSION_SPACINGS, LASER_MAX_EDGE_M, TIN_THIN_CELLS};
+use regolith_compiler::compile::{DEM_REGRESSION_SPACINGS, LASER_MAX_EDGE_M};
 use regolith_compiler::stages::dem_raster::{DemRaster, MaxEdge, Raster};
-use regolith_compiler::stages::dem_tin::build_tin_thinned;
+use regolith_compiler::stages::dem_tin::build_tin;
 use serde_json::json;
 
 /// The true surface at every cell centre of `r`, row-major.
@@ -132,14 +130,7 @@ fn main() {
     );
 
     let t = Instant::now();
-    let thin_m = cells
-        .iter()
-        .copied()
-        .reduce(f64::min)
-        .filter(|_| !tin_only)
-        .map(|finest| finest * TIN_THIN_CELLS);
-    let tin =
-        build_tin_thinned(&vertices, albedo.as_deref(), LASER_MAX_EDGE_M, thin_m).expect("dem.tin");
+    let tin = build_tin(&vertices, albedo.as_deref(), LASER_MAX_EDGE_M).expect("dem.tin");
     let tin_s = t.elapsed().as_secs_f64();
     drop((vertices, albedo));
     println!(

@@ -339,12 +339,6 @@ fn laser_terrain(
     ctx.lap(MergeClean::NAME);
     let dem_tin = DemTin {
         max_edge_m: LASER_MAX_EDGE_M,
-        thin_m: t
-            .raster_m
-            .iter()
-            .copied()
-            .reduce(f64::min)
-            .map(|finest| finest * TIN_THIN_CELLS),
     };
     let tin = dem_tin.run(&ctx.cx, &merged)?;
     ctx.record(&dem_tin);
@@ -1145,13 +1139,6 @@ pub fn compile_path(
     let writer = Writer::create_or_open(db)?;
     compile(&c, &writer, &options(&c, release), progress)
 }
-
-/// Side of the squares of which `dem.tin` triangulates one laser vertex each, in the finest
-/// raster's cells. The TIN decides which cells hold data (its long-edge rule) and the height of
-/// the few cells where the local regression does not apply (a discontinuity, too few points);
-/// every vertex still enters the regression. Half a cell keeps a vertex within each quarter of
-/// every cell wherever the scan has one, so neither decision loses resolution.
-pub const TIN_THIN_CELLS: f64 = 0.5;
 
 /// Support of the terrain rasters' local-regression height estimate, in median TIN edges (see
 /// `stages::dem_regress`): about a dozen points per estimate at the usual scan density, which

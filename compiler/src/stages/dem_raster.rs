@@ -66,7 +66,7 @@ pub struct RasterStats {
     pub triangles: usize,
     /// Cells without data.
     pub nodata_cells: usize,
-    /// TIN vertices (every merged point; its triangles may join a thinned subset of them).
+    /// TIN vertices.
     pub tin_points: usize,
     /// TIN triangles.
     pub tin_triangles: usize,

@@ -71,18 +71,6 @@ pub fn build_tin(
     albedo: Option<&[f32]>,
     max_edge_m: f64,
 ) -> Result<Tin, String> {
-    build_tin_thinned(points, albedo, max_edge_m, None)
-}
-
-/// [`build_tin`], triangulating only one vertex per `thin_m` square (the one nearest the
-/// square's centre) when `thin_m` is given; every vertex is still kept in [`Tin::vertices`]
-/// (the rasters' local regression averages them all), and the triangles index them.
-pub fn build_tin_thinned(
-    points: &[[f64; 3]],
-    albedo: Option<&[f32]>,
-    max_edge_m: f64,
-    thin_m: Option<f64>,
-) -> Result<Tin, String> {
     if let Some(i) = points.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
         return Err(format!(
             "point {i} has non-finite coordinates, expected finite x, y, z"
@@ -144,17 +132,7 @@ pub fn build_tin_thinned(
     let duplicates_merged = points.len() - vertices.len();
     u32::try_from(vertices.len())
         .map_err(|_| format!("{} vertices, expected at most {}", vertices.len(), u32::MAX))?;
-    let mut triangles = match thin_m.filter(|t| t.is_finite() && *t > 0.0) {
-        None => triangulate(&vertices, max_edge_m)?,
-        Some(t) => {
-            let keep = thinned(&vertices, t);
-            let sub: Vec<[f64; 3]> = keep.iter().map(|&i| vertices[i as usize]).collect();
-            let mut tris = triangulate(&sub, max_edge_m)?;
-            tris.par_iter_mut()
-                .for_each(|tri| *tri = tri.map(|k| keep[k as usize]));
-            tris
-        }
-    };
+    let mut triangles = triangulate(&vertices, max_edge_m)?;
     canonical_order(&mut triangles);
     Ok(Tin {
         vertices,
@@ -163,45 +141,6 @@ pub fn build_tin_thinned(
         duplicates_merged,
         max_edge_m: max_edge_m.is_finite().then_some(max_edge_m),
     })
-}
-
-/// Indices (ascending, so still x-sorted) of one vertex per `cell`-sided square of the plane:
-/// the one nearest the square's centre, the lowest index among equally near ones. The vertices
-/// being x-sorted, each column of squares is a run of them, thinned on its own.
-fn thinned(vertices: &[[f64; 3]], cell: f64) -> Vec<u32> {
-    let column = |v: &[f64; 3]| (v[0] / cell).floor();
-    let mut runs: Vec<(usize, &[[f64; 3]])> = Vec::new();
-    let mut start = 0;
-    for run in vertices.chunk_by(|a, b| column(a) == column(b)) {
-        runs.push((start, run));
-        start += run.len();
-    }
-    let kept: Vec<Vec<u32>> = runs
-        .par_iter()
-        .map(|&(start, run)| {
-            let mut keyed: Vec<(f64, f64, usize)> = run
-                .iter()
-                .enumerate()
-                .map(|(k, v)| {
-                    let (cx, cy) = (column(v), (v[1] / cell).floor());
-                    let (dx, dy) = (v[0] - (cx + 0.5) * cell, v[1] - (cy + 0.5) * cell);
-                    (cy, dx * dx + dy * dy, start + k)
-                })
-                .collect();
-            keyed.sort_unstable_by(|a, b| {
-                a.0.total_cmp(&b.0)
-                    .then(a.1.total_cmp(&b.1))
-                    .then(a.2.cmp(&b.2))
-            });
-            let mut keep: Vec<u32> = keyed
-                .chunk_by(|a, b| a.0 == b.0)
-                .filter_map(|g| g.first().map(|k| k.2 as u32))
-                .collect();
-            keep.sort_unstable();
-            keep
-        })
-        .collect();
-    kept.concat()
 }
 
 /// Puts every triangle's lowest vertex index first (a rotation, so still counter-clockwise) and
@@ -221,34 +160,23 @@ fn canonical_order(triangles: &mut [[u32; 3]]) {
 pub struct DemTin {
     /// Longest horizontal triangle edge kept, metres (`f64::INFINITY`: the whole triangulation).
     pub max_edge_m: f64,
-    /// Triangulate one vertex per square of this side, metres (`None`: every vertex).
-    pub thin_m: Option<f64>,
 }
 
 impl Stage for DemTin {
     const NAME: &'static str = "dem.tin";
-    const VERSION: u32 = 5;
+    const VERSION: u32 = 4;
     const DESCRIPTION: &'static str =
         "Delaunay TIN of the merged ground points in (x, y); (x, y) duplicates keep the mean z";
     type Input = MergedCloud;
     type Output = Tin;
 
     fn params(&self) -> serde_json::Value {
-        serde_json::json!({
-            "duplicates": "mean",
-            "max_edge_m": self.max_edge_m,
-            "thin_m": self.thin_m,
-        })
+        serde_json::json!({ "duplicates": "mean", "max_edge_m": self.max_edge_m })
     }
 
     fn run(&self, _cx: &StageCx, input: &MergedCloud) -> Result<Tin, StageError> {
-        build_tin_thinned(
-            &input.points,
-            input.albedo.as_deref(),
-            self.max_edge_m,
-            self.thin_m,
-        )
-        .map_err(|e| StageError::new(Self::NAME, e))
+        build_tin(&input.points, input.albedo.as_deref(), self.max_edge_m)
+            .map_err(|e| StageError::new(Self::NAME, e))
     }
 }
 
@@ -272,50 +200,5 @@ mod tests {
         assert_eq!(tin.triangles.len(), 4);
         assert!(tin.vertices.contains(&[0.5, 0.5, 3.0]));
         assert!(build_tin(&[[f64::NAN, 0.0, 0.0]], None, 1.0).is_err());
-    }
-
-    #[test]
-    fn thinning_triangulates_one_vertex_per_square_and_keeps_every_vertex() {
-        // A 1 mm lattice, slightly jittered, over 5 × 5 cm.
-        let pts: Vec<[f64; 3]> = (0..50)
-            .flat_map(|i| (0..50).map(move |j| (i, j)))
-            .map(|(i, j)| {
-                let jit = ((i * 31 + j * 17) % 7) as f64 * 1e-5;
-                [
-                    i as f64 * 1e-3 + jit,
-                    j as f64 * 1e-3 - jit,
-                    0.01 * i as f64,
-                ]
-            })
-            .collect();
-        let full = build_tin(&pts, None, f64::INFINITY).unwrap();
-        let thin = build_tin_thinned(&pts, None, f64::INFINITY, Some(0.0025)).unwrap();
-        assert_eq!(thin.vertices, full.vertices);
-        let square = |v: &[f64; 3]| {
-            (
-                (v[0] / 0.0025).floor() as i64,
-                (v[1] / 0.0025).floor() as i64,
-            )
-        };
-        let mut occupied: Vec<(i64, i64)> = pts.iter().map(square).collect();
-        occupied.sort_unstable();
-        occupied.dedup();
-        let mut used: Vec<u32> = thin.triangles.iter().flatten().copied().collect();
-        used.sort_unstable();
-        used.dedup();
-        // One vertex per occupied 2.5 mm square, each square once.
-        assert_eq!(used.len(), occupied.len());
-        let mut squares: Vec<(i64, i64)> = used
-            .iter()
-            .map(|&i| square(&thin.vertices[i as usize]))
-            .collect();
-        squares.sort_unstable();
-        squares.dedup();
-        assert_eq!(squares, occupied);
-        // Squares smaller than the spacing keep every vertex: the same TIN.
-        assert_eq!(
-            build_tin_thinned(&pts, None, f64::INFINITY, Some(1e-4)).unwrap(),
-            full
-        );
     }
 }
