@@ -110,7 +110,7 @@ pub struct ViewImages {
     pub real_sd: f32,
 }
 
-/// One sampled render pixel (72 bytes: every evaluation of a fit streams them all).
+/// One sampled render pixel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Observation {
     /// Index of the view.
@@ -131,11 +131,11 @@ pub enum Against {
     /// The real image of another view of the stereo head where it sees the same terrain
     /// point (its index, and the point in that view's render camera frame): the residual is
     /// the real image of `view` minus the real image of the mate ([`stereo_pairs`]).
-    Mate(u32, [f64; 3]),
+    Mate(usize, [f64; 3]),
     /// A survey marker sighted in the real image of `view` ([`super::markers::sight`]), the
     /// observation's point its centre: the residual is the centre's projection's coordinate
     /// (axis 0: x, 1: y) minus the sighting's, in pixels.
-    Sighting(u8, f64),
+    Sighting(usize, f64),
 }
 
 impl Observation {
@@ -153,8 +153,7 @@ impl Observation {
     pub fn paired(o: &Observation, mate: usize, mate_point: [f64; 3]) -> Observation {
         Observation {
             weight: 1.0,
-            // View indices are far below u32::MAX (a release holds a few hundred views).
-            against: Against::Mate(u32::try_from(mate).unwrap_or(u32::MAX), mate_point),
+            against: Against::Mate(mate, mate_point),
             ..*o
         }
     }
@@ -162,15 +161,7 @@ impl Observation {
     /// The mate's view and point, when the observation pairs two real images.
     pub fn mate(&self) -> Option<(usize, [f64; 3])> {
         match self.against {
-            Against::Mate(b, pc) => Some((b as usize, pc)),
-            _ => None,
-        }
-    }
-
-    /// The sighting's axis and pixel coordinate, when the observation is a marker's.
-    pub fn sighting(&self) -> Option<(usize, f64)> {
-        match self.against {
-            Against::Sighting(axis, px) => Some((usize::from(axis), px)),
+            Against::Mate(b, pc) => Some((b, pc)),
             _ => None,
         }
     }
@@ -660,10 +651,10 @@ pub fn residuals_of_runs(
     let residual = |o: &Observation| {
         let other = match o.against {
             Against::Render(value) => value,
-            Against::Mate(view, point) => real_at(view as usize, point),
+            Against::Mate(view, point) => real_at(view, point),
             Against::Sighting(axis, target) => {
                 let q = cams[o.view].project(moved[o.view].apply(o.point));
-                return o.weight * q.map_or(0.0, |q| q[usize::from(axis)] - target);
+                return o.weight * q.map_or(0.0, |q| q[axis] - target);
             }
         };
         o.weight * (real_at(o.view, o.point) - other)

@@ -253,11 +253,11 @@ pub(crate) fn marker_observations(
                         .then(|| (from_ground.transform_point(m.centre_m), s.pixel))
                 })
                 .flat_map(|(point, pixel)| {
-                    (0..2u8).map(move |axis| geometry::Observation {
+                    (0..2).map(move |axis| geometry::Observation {
                         view: i,
                         point,
                         weight,
-                        against: geometry::Against::Sighting(axis, pixel[usize::from(axis)]),
+                        against: geometry::Against::Sighting(axis, pixel[axis]),
                     })
                 })
                 .collect::<Vec<_>>()
