@@ -695,7 +695,9 @@ fn a_distant_fine_texture_is_filtered_not_aliased() {
 
 /// A view's camera rays traced once and shaded under other lights give the bytes of full
 /// renders under those lights — heightfield and mesh, with and without cast shadows, at one and
-/// two samples per axis (two adds the centre ray) — while the lights' shadows do differ.
+/// two samples per axis (two adds the centre ray) — while the lights' shadows do differ. A
+/// light's kept cast shadow shades them to the same bytes, and one kept for another light's
+/// direction is not used.
 #[test]
 fn relit_hits_give_the_bytes_of_a_render() {
     let hf = Geometry::Heightfield {
@@ -727,6 +729,15 @@ fn relit_hits_give_the_bytes_of_a_render() {
                 let full = scene.render(&l, &view, &opts(shadows));
                 assert_eq!(bits(&relit), bits(&full), "n = {n}, shadows {shadows}");
                 assert_eq!(relit.mask, full.mask);
+                if shadows {
+                    let cast = scene.cast_shadow(&hits, &l);
+                    let kept = scene.relight_cast(&hits, &l, &cast);
+                    assert_eq!(bits(&kept), bits(&full), "n = {n}, kept cast shadow");
+                    assert_eq!(kept.mask, full.mask);
+                    let other = scene.cast_shadow(&hits, &light(l.azimuth_deg + 90.0, 60.0, 0.2));
+                    let stale = scene.relight_cast(&hits, &l, &other);
+                    assert_eq!(bits(&stale), bits(&full), "n = {n}, another light's shadow");
+                }
                 seen.push(bits(&relit));
             }
             assert!(

@@ -34,7 +34,9 @@
 //! * **Relighting:** a view's camera rays can be traced once ([`Scene::primary_hits`]) and
 //!   their first hits shaded under other lights ([`Scene::relight`]), byte for byte a render
 //!   under each: the search for a light's direction renders the same views under dozens of
-//!   lights, and the camera rays are most of a render's work.
+//!   lights, and the camera rays are most of a render's work. A light's cast shadow on them
+//!   can be kept, one bit a ray ([`Scene::cast_shadow`]), and shaded again without a shadow
+//!   ray ([`Scene::relight_cast`]), for the directions a search comes back to.
 //! * **Determinism:** rows are rendered in parallel with rayon, but every pixel is a pure
 //!   function of its coordinates (no reductions across pixels), so the bytes do not depend on
 //!   the number of threads.
@@ -49,7 +51,7 @@ pub mod shading;
 
 /// The renderer's own inverse of the lens distortion, for code that back-projects its pixels.
 pub(crate) use raster::unproject;
-pub use raster::PrimaryHits;
+pub use raster::{CastShadow, PrimaryHits};
 
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
@@ -377,6 +379,18 @@ impl<'a> Scene<'a> {
     /// the same bytes as [`Scene::render`] of their view.
     pub fn relight(&self, hits: &PrimaryHits, light: &Light, shadows: bool) -> Rendered {
         raster::relight(self, hits, light, shadows)
+    }
+
+    /// Which of `hits` lie in `light`'s cast shadow, kept to shade them again under the same
+    /// light by [`Scene::relight_cast`] without tracing a shadow ray.
+    pub fn cast_shadow(&self, hits: &PrimaryHits, light: &Light) -> CastShadow {
+        raster::cast_shadow(self, hits, light)
+    }
+
+    /// `hits` shaded under `light` with its cast shadow `cast`: the same bytes as
+    /// [`Scene::relight`] with shadows (traced again if `cast` is another direction's).
+    pub fn relight_cast(&self, hits: &PrimaryHits, light: &Light, cast: &CastShadow) -> Rendered {
+        raster::relight_cast(self, hits, light, cast)
     }
 }
 

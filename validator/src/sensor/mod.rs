@@ -254,6 +254,38 @@ impl SensorModel {
         self.finish(rendered, self.camera(calibrated), calibrated, noise_seed)
     }
 
+    /// The cast shadow of this model's light on `hits` (see [`crate::render::CastShadow`]), to
+    /// relight them again by [`SensorModel::relight_cast`]; `None` when the model casts none.
+    pub fn cast_shadow(
+        &self,
+        scene: &crate::render::Scene<'_>,
+        hits: &crate::render::PrimaryHits,
+        light: &Light,
+    ) -> Option<crate::render::CastShadow> {
+        let (opts, light) = self.lighting(light, Sampling::Full(1));
+        opts.shadows.then(|| scene.cast_shadow(hits, &light))
+    }
+
+    /// [`SensorModel::relight`] (without noise) given the cast shadow of this model's light,
+    /// made by [`SensorModel::cast_shadow`] of a model with the same `shadows` effect: the same
+    /// bytes, without a shadow ray.
+    pub fn relight_cast(
+        &self,
+        scene: &crate::render::Scene<'_>,
+        hits: &crate::render::PrimaryHits,
+        light: &Light,
+        cast: &crate::render::CastShadow,
+        calibrated: &CameraModel,
+    ) -> SensorRender {
+        let (opts, light) = self.lighting(light, Sampling::Full(1));
+        let rendered = if opts.shadows {
+            scene.relight_cast(hits, &light, cast)
+        } else {
+            scene.relight(hits, &light, false)
+        };
+        self.finish(rendered, self.camera(calibrated), calibrated, None)
+    }
+
     /// The render options at `sampling` and the light of a render under `light`: a
     /// `shadows` effect casts shadows from its direction, with `light`'s ambient share.
     fn lighting(&self, light: &Light, sampling: Sampling) -> (RenderOptions, Light) {

@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use crate::gap::context::{has, jackknife, named, upsert, Ctx};
 use crate::gap::views::{predict_relit, GapView, Prediction};
 use crate::gap::{shadows, Named};
-use crate::render::{Light, PrimaryHits};
+use crate::render::{CastShadow, Light, PrimaryHits};
 use crate::sensor::{Effect, SensorModel};
 
 /// The views of a shadow test: the real frame means against `lit` and `shadowed` predictions.
@@ -88,18 +88,29 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
     // The direction first: the campaign records its light as surveyed, a few degrees off, and
     // shadows tested where a wrong light casts them are half missed.
     let near = shadows::near_shadows(&shadow_views(ctx, &means, &lit, &shadowed));
-    // View `i`'s shadowed DN under a light from `d`, kept for the next search that asks: the
-    // search over every view and each fold's search walk the same lattice of directions from
-    // the record, so most directions recur.
-    let seen = DirectionCache::default();
-    let shadowed_dn =
-        |d: (f64, f64), i: usize| seen.get_or_render(d, i, || relit(i, &with(d), &ctx.light).dn);
+    // View `i`'s shadowed DN under a light from `d`. Its cast shadow is kept for the next
+    // search that asks: the search over every view and each fold's search walk the same
+    // lattice of directions from the record, so most directions recur, and shading kept hits
+    // under a kept cast shadow costs no ray.
+    let seen = ShadowCache::default();
+    let shadowed_dn = |d: (f64, f64), i: usize| -> Vec<f32> {
+        let m = with(d);
+        let cast = seen.get_or_trace(d, i, || m.cast_shadow(&ctx.scene, &hits[i], &ctx.light));
+        match cast {
+            Some(cast) => {
+                let v = &ctx.views[i];
+                m.relight_cast(&ctx.scene, &hits[i], &ctx.light, &cast, &v.camera_model)
+                    .dn
+            }
+            None => relit(i, &m, &ctx.light).dn,
+        }
+    };
     // The direction scored on the views `keep` selects, searched from the record.
     let search = |keep: &dyn Fn(usize) -> bool| {
         let idx: Vec<usize> = (0..ctx.views.len()).filter(|&i| keep(i)).collect();
         let near: Vec<&[bool]> = idx.iter().map(|&i| near[i].as_slice()).collect();
         shadows::refine_direction(record, |d| {
-            let dn: Vec<Arc<Vec<f32>>> = idx.iter().map(|&i| shadowed_dn(d, i)).collect();
+            let dn: Vec<Vec<f32>> = idx.iter().map(|&i| shadowed_dn(d, i)).collect();
             let v: Vec<shadows::ShadowView<'_>> = idx
                 .iter()
                 .zip(&dn)
@@ -183,42 +194,44 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
     ));
 }
 
-/// Most bytes of shadowed renders a stage keeps for its searches (beyond it, renders are made
-/// again): about 60 directions of estec's sixteen 1280 x 1024 views.
-const CACHE_BYTES: usize = 6 << 30;
+/// Most bytes of cast shadows a stage keeps for its searches (beyond it, shadow rays are
+/// traced again): a bound like the rest of the stage's memory, some 6500 view-directions of
+/// 1280 x 1024 views, where estec's searches (sixteen views, about 60 directions) need a
+/// seventh of it.
+const CACHE_BYTES: usize = 1 << 30;
 
-/// Shadowed DN images by (light direction, view), up to [`CACHE_BYTES`].
+/// Cast shadows by (light direction, view), up to [`CACHE_BYTES`].
 #[derive(Default)]
-struct DirectionCache {
+struct ShadowCache {
     kept: Mutex<Kept>,
 }
 
-/// The kept images by (azimuth bits, elevation bits, view) and their bytes.
-type Kept = (HashMap<(u64, u64, usize), Arc<Vec<f32>>>, usize);
+/// The kept shadows by (azimuth bits, elevation bits, view) and their bytes.
+type Kept = (HashMap<(u64, u64, usize), Arc<CastShadow>>, usize);
 
-impl DirectionCache {
-    /// The image of view `i` under a light from `d`: the kept one, or `render`'s.
-    fn get_or_render(
+impl ShadowCache {
+    /// The cast shadow on view `i` of a light from `d`: the kept one, or `trace`'s.
+    fn get_or_trace(
         &self,
         d: (f64, f64),
         i: usize,
-        render: impl FnOnce() -> Vec<f32>,
-    ) -> Arc<Vec<f32>> {
+        trace: impl FnOnce() -> Option<CastShadow>,
+    ) -> Option<Arc<CastShadow>> {
         // Exact bits: a direction reached along another path (other float roundings) is
-        // rendered again, so a cached image is exactly the one a render would give.
+        // traced again, so a kept shadow is exactly the one a trace would give.
         let key = (d.0.to_bits(), d.1.to_bits(), i);
-        if let Some(dn) = self.kept.lock().ok().and_then(|k| k.0.get(&key).cloned()) {
-            return dn;
+        if let Some(cast) = self.kept.lock().ok().and_then(|k| k.0.get(&key).cloned()) {
+            return Some(cast);
         }
-        let dn = Arc::new(render());
+        let cast = Arc::new(trace()?);
         if let Ok(mut k) = self.kept.lock() {
-            let bytes = dn.len() * std::mem::size_of::<f32>();
-            // Another fold's search may have made the same image meanwhile.
+            let bytes = cast.bytes();
+            // Another fold's search may have traced the same shadow meanwhile.
             if !k.0.contains_key(&key) && k.1 + bytes <= CACHE_BYTES {
                 k.1 += bytes;
-                k.0.insert(key, dn.clone());
+                k.0.insert(key, cast.clone());
             }
         }
-        dn
+        Some(cast)
     }
 }
