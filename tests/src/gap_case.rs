@@ -198,7 +198,8 @@ impl CaseResult {
         n.std_err.get(param).copied()
     }
 
-    /// One line: hidden → named, every true parameter against its fit, gap before → after.
+    /// One line: hidden → named, every true parameter against its fit, gap before → after, and
+    /// the texture's excess blur as measured (what `texture-lowpass` is named from).
     pub fn line(&self, label: &str, seed: u64) -> String {
         let mut detail = String::new();
         for t in &self.truth {
@@ -221,7 +222,7 @@ impl CaseResult {
         format!(
             "{label:<22} seed {seed}: named {:?}{detail}; gap {:.2}→{:.2} DN (floor {:.2}), \
              alignment {:.4}→{:.4} ({:.4}), spectrum {:.3}→{:.3} ({:.3}), \
-             in shadow {:.2}→{:.2} DN ({:.2}), texture deficit {:.3}→{:.3} ({:.3})",
+             in shadow {:.2}→{:.2} DN ({:.2}), texture deficit {:.3}→{:.3} ({:.3}){}",
             self.named(),
             b[0],
             a[0],
@@ -237,7 +238,11 @@ impl CaseResult {
             f[3],
             b[4],
             a[4],
-            f[4]
+            f[4],
+            self.gap.texture.as_ref().map_or(String::new(), |t| format!(
+                ", texture excess blur {:.1} mm",
+                t.excess_m * 1e3
+            ))
         )
     }
 }
