@@ -500,28 +500,42 @@ fn assemble(
 
 /// The `w x h` image whose pixel `(c, r)` is `pixel(c, r)`: its radiance and the depth of the
 /// surface its centre sees (`None`: nothing, depth `NaN` and mask 0). Rows in parallel, each
-/// pixel computed once, so the bytes do not depend on the thread count.
+/// written in place, each pixel computed once, so the bytes do not depend on the thread count.
 fn image_of(
     w: usize,
     h: usize,
     pixel: impl Fn(usize, usize) -> (f64, Option<f64>) + Sync,
 ) -> Rendered {
-    let rows: Vec<Vec<(f64, Option<f64>)>> = (0..h)
-        .into_par_iter()
-        .map(|r| (0..w).map(|c| pixel(c, r)).collect())
-        .collect();
     let mut out = Rendered {
         width: w,
         height: h,
-        radiance: Vec::with_capacity(w * h),
-        depth: Vec::with_capacity(w * h),
-        mask: Vec::with_capacity(w * h),
+        radiance: vec![0.0; w * h],
+        depth: vec![f32::NAN; w * h],
+        mask: vec![0; w * h],
     };
-    for (value, centre) in rows.into_iter().flatten() {
-        out.radiance.push(value as f32);
-        out.depth.push(centre.map_or(f32::NAN, |t| t as f32));
-        out.mask.push(if centre.is_some() { 255 } else { 0 });
+    if w == 0 {
+        return out;
     }
+    out.radiance
+        .par_chunks_mut(w)
+        .zip(out.depth.par_chunks_mut(w))
+        .zip(out.mask.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(r, ((radiance, depth), mask))| {
+            for (c, ((v, d), m)) in radiance
+                .iter_mut()
+                .zip(depth.iter_mut())
+                .zip(mask.iter_mut())
+                .enumerate()
+            {
+                let (value, centre) = pixel(c, r);
+                *v = value as f32;
+                if let Some(t) = centre {
+                    *d = t as f32;
+                    *m = 255;
+                }
+            }
+        });
     out
 }
 
