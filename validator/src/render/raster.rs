@@ -51,21 +51,22 @@ pub struct PrimaryHits {
 pub(crate) fn primary_hits(scene: &Scene<'_>, view: &View, opts: &RenderOptions) -> PrimaryHits {
     let rays = CameraRays::new(scene, view, opts);
     let per_pixel = samples_per_pixel(rays.n);
-    let rows: Vec<Vec<Option<SurfaceSample>>> = (0..rays.h)
-        .into_par_iter()
-        .map(|r| {
-            let mut row = Vec::with_capacity(rays.w * per_pixel);
-            for c in 0..rays.w {
-                row.extend((0..per_pixel).map(|k| rays.first_hit(scene, c, r, k)));
-            }
-            row
-        })
-        .collect();
+    let row_len = rays.w * per_pixel;
+    let mut hits = vec![None; row_len * rays.h];
+    if row_len > 0 {
+        hits.par_chunks_mut(row_len)
+            .enumerate()
+            .for_each(|(r, row)| {
+                for (i, hit) in row.iter_mut().enumerate() {
+                    *hit = rays.first_hit(scene, i / per_pixel, r, i % per_pixel);
+                }
+            });
+    }
     PrimaryHits {
         width: rays.w,
         height: rays.h,
         supersample: rays.n,
-        hits: rows.concat(),
+        hits,
     }
 }
 
@@ -169,18 +170,15 @@ fn assemble_at_edges(
         ((n / 2) * n + n / 2) as usize
     };
     let pixel_spread = rays.spread * f64::from(n);
-    let centres: Vec<Centre> = (0..h)
-        .into_par_iter()
-        .map(|r| {
-            (0..w)
-                .map(|c| {
-                    let s = rays.hit_with_spread(scene, c, r, centre_k, pixel_spread);
-                    Centre::of(s.as_ref(), shader)
-                })
-                .collect::<Vec<_>>()
-        })
-        .collect::<Vec<_>>()
-        .concat();
+    let mut centres = vec![Centre::of(None, shader); w * h];
+    if w > 0 {
+        centres.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+            for (c, centre) in row.iter_mut().enumerate() {
+                let s = rays.hit_with_spread(scene, c, r, centre_k, pixel_spread);
+                *centre = Centre::of(s.as_ref(), shader);
+            }
+        });
+    }
     let pixel_angle = 2.0 / (rays.cam.fx.abs() + rays.cam.fy.abs());
     let apart = |a: &Centre, b: &Centre| -> bool {
         match (a.t.is_nan(), b.t.is_nan()) {
