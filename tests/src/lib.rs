@@ -7,6 +7,7 @@
 
 pub mod albedo_truth;
 pub mod gap_case;
+pub mod height_truth;
 pub mod moto;
 pub mod sample;
 

@@ -5,11 +5,11 @@
 use std::path::Path;
 
 use regolith_compiler::compile::{compile, options};
-use regolith_compiler::encode::exr::read_grey_f32;
 use regolith_compiler::ingest::campaign;
 use regolith_corpus::{generate, GenerateOptions, Preset};
 use regolith_format::frames::Pose;
 use regolith_reader::{Database, Writer};
+use regolith_tests::height_truth::{heights_vs_truth, HeightStats, HeightTruth};
 use serde_json::Value;
 
 /// Registration tolerance on `mini`: 5 markers over 2 m with 2 mm tie-point noise bound the
@@ -37,47 +37,6 @@ fn mini(dir: &Path, seed: u64) {
 
 fn json(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
-}
-
-/// Bilinear height of the true surface at ground (x, y).
-struct Truth {
-    origin: [f64; 2],
-    cell: f64,
-    w: usize,
-    h: usize,
-    z: Vec<f32>,
-}
-
-impl Truth {
-    fn load(dir: &Path) -> Truth {
-        let meta = json(&dir.join("truth/height.json"));
-        let (w, h, z) =
-            read_grey_f32(&std::fs::read(dir.join("truth/height.exr")).unwrap()).unwrap();
-        Truth {
-            origin: [
-                meta["origin_m"][0].as_f64().unwrap(),
-                meta["origin_m"][1].as_f64().unwrap(),
-            ],
-            cell: meta["cell_m"].as_f64().unwrap(),
-            w,
-            h,
-            z,
-        }
-    }
-    fn at(&self, x: f64, y: f64) -> Option<f64> {
-        let fc = (x - self.origin[0]) / self.cell;
-        let fr = (self.origin[1] - y) / self.cell;
-        if fc < 0.0 || fr < 0.0 || fc >= (self.w - 1) as f64 || fr >= (self.h - 1) as f64 {
-            return None;
-        }
-        let (c, r) = (fc.floor() as usize, fr.floor() as usize);
-        let (tx, ty) = (fc - c as f64, fr - r as f64);
-        let z = |c: usize, r: usize| f64::from(self.z[r * self.w + c]);
-        Some(
-            (z(c, r) * (1.0 - tx) + z(c + 1, r) * tx) * (1.0 - ty)
-                + (z(c, r + 1) * (1.0 - tx) + z(c + 1, r + 1) * tx) * ty,
-        )
-    }
 }
 
 fn matrix_pose(m: &Value) -> Pose {
@@ -223,13 +182,7 @@ fn compile_mini_meets_accuracy_against_truth() {
 
     // DEM: height RMS vs the true surface ≤ 6 mm over valid cells, and no cell off by 5 cm
     // away from the marker balls (near-vertical faces of the domes).
-    let truth = Truth::load(&camp);
-    let near_ball = |x: f64, y: f64| {
-        balls.iter().any(|b| {
-            let c = &b["centre_m"];
-            (c[0].as_f64().unwrap() - x).hypot(c[1].as_f64().unwrap() - y) < 0.03
-        })
-    };
+    let truth = HeightTruth::load(&camp).unwrap();
     let dems: Vec<&str> = summary
         .dem
         .iter()
@@ -237,25 +190,11 @@ fn compile_mini_meets_accuracy_against_truth() {
         .collect();
     assert!(!dems.is_empty());
     for entry in dems {
-        let hf = release.heightfield(entry).unwrap();
-        let (mut sum, mut n, mut worst) = (0.0, 0usize, 0.0f64);
-        for r in 0..hf.meta.height {
-            for c in 0..hf.meta.width {
-                let i = (r * hf.meta.width + c) as usize;
-                if hf.valid[i] == 0 {
-                    continue;
-                }
-                let [x, y] = hf.meta.cell_centre(c, r);
-                let Some(zt) = truth.at(x, y) else { continue };
-                let d = f64::from(hf.heights[i]) - zt;
-                sum += d * d;
-                n += 1;
-                if !near_ball(x, y) {
-                    worst = worst.max(d.abs());
-                }
-            }
-        }
-        let rms = (sum / n as f64).sqrt();
+        let HeightStats {
+            cells: n,
+            rms,
+            max_abs: worst,
+        } = heights_vs_truth(&release, entry, &truth).unwrap();
         eprintln!(
             "{entry}: {n} cells, RMS {:.2} mm, max {:.1} mm",
             rms * 1e3,
