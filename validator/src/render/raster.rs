@@ -231,6 +231,11 @@ pub(crate) fn relight(
     shadows: bool,
 ) -> Rendered {
     let shader = Shader::new(scene, light, shadows);
+    shade_hits(hits, |s, _| shader.shade(s))
+}
+
+/// The image of `hits`, each hit's radiance `shade(hit, ray index)` (see [`assemble`]).
+fn shade_hits(hits: &PrimaryHits, shade: impl Fn(&SurfaceSample, usize) -> f64 + Sync) -> Rendered {
     let (w, per_pixel) = (hits.width, samples_per_pixel(hits.supersample));
     assemble(
         w,
@@ -242,7 +247,7 @@ pub(crate) fn relight(
                 .copied()
                 .flatten()
         },
-        |s, _| shader.shade(s),
+        shade,
     )
 }
 
@@ -311,19 +316,7 @@ pub(crate) fn relight_cast(
     if shader.to_light != cast.to_light || cast.bits.len() != hits.hits.len().div_ceil(64) {
         return relight(scene, hits, light, true);
     }
-    let (w, per_pixel) = (hits.width, samples_per_pixel(hits.supersample));
-    assemble(
-        w,
-        hits.height,
-        hits.supersample,
-        |c, r, k| {
-            hits.hits
-                .get((r * w + c) * per_pixel + k)
-                .copied()
-                .flatten()
-        },
-        |s, i| shader.radiance(s, cast.shadowed(i)),
-    )
+    shade_hits(hits, |s, i| shader.radiance(s, cast.shadowed(i)))
 }
 
 /// The camera rays of one view: their directions in the ground frame and where they first
