@@ -44,6 +44,17 @@ pub struct CameraModel {
     pub distortion: Distortion,
 }
 
+/// A projected pixel and its derivatives ([`CameraModel::project_with_jacobian`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProjectionJacobian {
+    /// The pixel, as [`CameraModel::project`] gives it.
+    pub pixel: [f64; 2],
+    /// ∂(u, v)/∂(X, Y, Z): row 0 u, row 1 v.
+    pub point: [[f64; 3]; 2],
+    /// ∂(u, v)/∂(k1, k2): row 0 u, row 1 v.
+    pub radial: [[f64; 2]; 2],
+}
+
 /// Brown–Conrady coefficients in OpenCV order.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Distortion {
@@ -139,6 +150,56 @@ impl CameraModel {
         Some(self.to_pixel(xd, yd))
     }
 
+    /// [`CameraModel::project`] with the pixel's derivatives: in the camera-frame point (a
+    /// 2 × 3 matrix, rows u and v) and in the radial terms `k1` and `k2` (columns). For fits
+    /// that move points or the lens by small increments (the chain rule instead of one
+    /// projection per increment).
+    #[inline]
+    pub fn project_with_jacobian(&self, p: [f64; 3]) -> Option<ProjectionJacobian> {
+        if p[2] <= 1e-12 {
+            return None;
+        }
+        let d = &self.distortion;
+        let iz = 1.0 / p[2];
+        let (x, y) = (p[0] * iz, p[1] * iz);
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3));
+        // ∂radial/∂(r²).
+        let slope = d.k1 + r2 * (2.0 * d.k2 + 3.0 * r2 * d.k3);
+        let xd = x * radial + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * x * x);
+        let yd = y * radial + d.p1 * (r2 + 2.0 * y * y) + 2.0 * d.p2 * x * y;
+        // ∂(x_d, y_d)/∂(x, y).
+        let cross = 2.0 * x * y * slope + 2.0 * d.p1 * x + 2.0 * d.p2 * y;
+        let dxd = [
+            radial + 2.0 * x * x * slope + 2.0 * d.p1 * y + 6.0 * d.p2 * x,
+            cross,
+        ];
+        let dyd = [
+            cross,
+            radial + 2.0 * y * y * slope + 6.0 * d.p1 * y + 2.0 * d.p2 * x,
+        ];
+        // ∂(x_d, y_d)/∂P through x = X/Z, y = Y/Z.
+        let by_point = |row: [f64; 2]| [row[0] * iz, row[1] * iz, -(row[0] * x + row[1] * y) * iz];
+        let (gx, gy) = (by_point(dxd), by_point(dyd));
+        let mut du = [0.0; 3];
+        for ((o, a), b) in du.iter_mut().zip(gx).zip(gy) {
+            *o = self.fx * a + self.skew * b;
+        }
+        let point = [du, gy.map(|b| self.fy * b)];
+        let (r4, r2x, r2y) = (r2 * r2, r2 * x, r2 * y);
+        Some(ProjectionJacobian {
+            pixel: self.to_pixel(xd, yd),
+            point,
+            radial: [
+                [
+                    self.fx * r2x + self.skew * r2y,
+                    self.fx * r4 * x + self.skew * r4 * y,
+                ],
+                [self.fy * r2y, self.fy * r4 * y],
+            ],
+        })
+    }
+
     /// Inverts the distortion: the normalised undistorted coordinates seen at pixel `(u, v)`.
     /// Newton iterations from the distorted point; converges for any physically sensible
     /// distortion within the image.
@@ -186,6 +247,44 @@ impl CameraModel {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn the_projection_jacobian_is_the_projections_differences() {
+        let cam = navcam();
+        let p = [0.4, -0.3, 1.7];
+        let j = cam.project_with_jacobian(p);
+        assert!(j.is_some());
+        let Some(j) = j else { return };
+        let at = |c: &CameraModel, q: [f64; 3]| c.project(q).unwrap_or([f64::NAN; 2]);
+        assert_eq!(j.pixel, at(&cam, p));
+        let h = 1e-6;
+        for axis in 0..3 {
+            let mut q = p;
+            q[axis] += h;
+            let (a, b) = (at(&cam, q), at(&cam, p));
+            for row in 0..2 {
+                let fd = (a[row] - b[row]) / h;
+                assert!((fd - j.point[row][axis]).abs() < 1e-3, "{row} {axis}: {fd}");
+            }
+        }
+        for term in 0..2 {
+            let mut c = cam.clone();
+            if term == 0 {
+                c.distortion.k1 += h;
+            } else {
+                c.distortion.k2 += h;
+            }
+            let (a, b) = (at(&c, p), at(&cam, p));
+            for row in 0..2 {
+                let fd = (a[row] - b[row]) / h;
+                assert!(
+                    (fd - j.radial[row][term]).abs() < 1e-3,
+                    "{row} {term}: {fd}"
+                );
+            }
+        }
+        assert_eq!(cam.project_with_jacobian([0.0, 0.0, -1.0]), None);
+    }
 
     fn navcam() -> CameraModel {
         CameraModel {

@@ -55,8 +55,11 @@
 //! independently of depth, a pose bias moves near points more than far ones; fitting them
 //! jointly keeps one from masquerading as the other.
 //!
-//! The residuals must be smooth in the parameters for the forward-difference Jacobian to be a
-//! gradient: the real image is sampled by Catmull–Rom interpolation (bilinear kinks at every
+//! The Jacobian is the chain rule through the interpolant's gradient and the lens's
+//! derivatives ([`jacobian_of_runs`]: a forward difference of the residuals sampled every
+//! image once per parameter, and took 75 of the 125 s of an estec `gap`). The residuals must
+//! be smooth in the parameters for it to be a gradient: the real image is sampled by
+//! Catmull–Rom interpolation (bilinear kinks at every
 //! pixel border made the objective rough at the 0.01 px scale), and its band-pass is tapered
 //! to 0 at the image border (where a sample leaving the image would otherwise jump to 0), with
 //! no render pixel sampled near it. With those, the fit reaches the minimum the residual has
@@ -68,9 +71,9 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 use regolith_format::camera_model::CameraModel;
-use regolith_format::frames::Pose;
+use regolith_format::frames::{Pose, RigidMatrix};
 
-use super::lsq::{solve, Problem};
+use super::lsq::{forward_step, solve_with_jacobian, Problem};
 use super::overlap::DepthView;
 use super::photometry::erode;
 use crate::sensor::{gaussian_blur, Effect, Placement, SensorModel};
@@ -485,6 +488,14 @@ pub fn cross_pairs(
 /// residual above the truth's), with 200 it reaches it.
 const MAX_ITER: usize = 200;
 
+/// Share of the band-pass cost below which an accepted step ends a fit. The stage's decisions
+/// rest on held-out residuals that differ by 10⁻² of the cost and more ([`crate::gap`]'s
+/// geometric thresholds), and at this share the steps move the parameters by a few
+/// hundredths of a millimetre and thousandths of a degree, under 1 % of the targets; the
+/// exact Jacobian would otherwise creep on along the rotation–translation valley (estec:
+/// 13–29 iterations where 5–8 reach this).
+const MIN_GAIN: f64 = 1e-6;
+
 /// RMS error of a named distortion's `dk1` and `dk2` over mini's calibration campaigns (seeds
 /// 108–114, a distortion hidden alone, the `laser/0.01` entry, two captures: `dk1` errors
 /// 0.0017–0.0107, `dk2` 0.0002–0.0127), added in quadrature to their standard errors. The
@@ -605,6 +616,81 @@ fn bicubic(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<f64> {
     Some(acc)
 }
 
+/// Where the parameters `p` take the render cameras' points: per view, render-camera into
+/// true-camera coordinates (the bias moves the rig) and the camera through the distortion.
+struct Warp {
+    moved: Vec<RigidMatrix>,
+    cams: Vec<CameraModel>,
+}
+
+impl Warp {
+    fn new(views: &[ViewImages], p: &[f64; 8]) -> Warp {
+        let (dist, bias) = effects_of(p);
+        let bias = SensorModel {
+            effects: vec![bias],
+        };
+        let dmodel = SensorModel {
+            effects: vec![dist],
+        };
+        Warp {
+            moved: views
+                .iter()
+                .map(|v| {
+                    bias.pose(&Placement {
+                        ground_from_camera: Pose::IDENTITY,
+                        rig_from_camera: v.rig_from_camera,
+                    })
+                    .inverse()
+                    .matrix()
+                })
+                .collect(),
+            cams: views.iter().map(|v| dmodel.camera(&v.camera)).collect(),
+        }
+    }
+
+    /// The pixel of view `view` where `point` (its render camera's frame) is seen.
+    #[inline]
+    fn project(&self, view: usize, point: [f64; 3]) -> Option<[f64; 2]> {
+        self.cams[view].project(self.moved[view].apply(point))
+    }
+}
+
+/// Derivatives of Catmull–Rom's tap weights ([`cubic_weights`]) in `t`.
+fn cubic_slopes(t: f64) -> [f64; 4] {
+    let t2 = t * t;
+    [
+        0.5 * (-3.0 * t2 + 4.0 * t - 1.0),
+        0.5 * (9.0 * t2 - 10.0 * t),
+        0.5 * (-9.0 * t2 + 8.0 * t + 1.0),
+        0.5 * (3.0 * t2 - 2.0 * t),
+    ]
+}
+
+/// The gradient (∂/∂u, ∂/∂v) of [`bicubic`]'s interpolant at (`u`, `v`), from the same clamped
+/// taps. `None` outside, where [`bicubic`] has no value.
+fn bicubic_gradient(img: &[f32], w: usize, h: usize, u: f64, v: f64) -> Option<[f64; 2]> {
+    if w < 2 || h < 2 || !(u >= 0.0 && v >= 0.0 && u <= (w - 1) as f64 && v <= (h - 1) as f64) {
+        return None;
+    }
+    let (x0, y0) = ((u as usize).min(w - 2), (v as usize).min(h - 2));
+    let (tx, ty) = (u - x0 as f64, v - y0 as f64);
+    let (wx, sx) = (cubic_weights(tx), cubic_slopes(tx));
+    let (wy, sy) = (cubic_weights(ty), cubic_slopes(ty));
+    let mut g = [0.0; 2];
+    for j in 0..4 {
+        let row = (y0 + j).saturating_sub(1).min(h - 1) * w;
+        let (mut value, mut slope) = (0.0, 0.0);
+        for i in 0..4 {
+            let t = f64::from(img[row + (x0 + i).saturating_sub(1).min(w - 1)]);
+            value += wx[i] * t;
+            slope += sx[i] * t;
+        }
+        g[0] += wy[j] * slope;
+        g[1] += sy[j] * value;
+    }
+    Some(g)
+}
+
 /// Weighted residuals (real − render, or real − real for a stereo pair; normalised band-pass
 /// units) for full parameters `p`; a point that leaves the image compares with 0 (the band's
 /// mean).
@@ -621,30 +707,10 @@ pub fn residuals_of_runs(
     out: &mut Vec<f64>,
 ) {
     out.clear();
-    let (dist, bias) = effects_of(p);
-    let bias = SensorModel {
-        effects: vec![bias],
-    };
-    // Render-camera into true-camera coordinates, per view (the bias moves the rig).
-    let moved: Vec<_> = views
-        .iter()
-        .map(|v| {
-            bias.pose(&Placement {
-                ground_from_camera: Pose::IDENTITY,
-                rig_from_camera: v.rig_from_camera,
-            })
-            .inverse()
-            .matrix()
-        })
-        .collect();
-    let dmodel = SensorModel {
-        effects: vec![dist],
-    };
-    let cams: Vec<CameraModel> = views.iter().map(|v| dmodel.camera(&v.camera)).collect();
+    let warp = Warp::new(views, p);
     let real_at = |view: usize, point: [f64; 3]| {
         let v = &views[view];
-        cams[view]
-            .project(moved[view].apply(point))
+        warp.project(view, point)
             .and_then(|q| bicubic(&v.real, v.width, v.height, q[0], q[1]))
             .unwrap_or(0.0)
     };
@@ -653,7 +719,7 @@ pub fn residuals_of_runs(
             Against::Render(value) => value,
             Against::Mate(view, point) => real_at(view, point),
             Against::Sighting(axis, target) => {
-                let q = cams[o.view].project(moved[o.view].apply(o.point));
+                let q = warp.project(o.view, o.point);
                 return o.weight * q.map_or(0.0, |q| q[axis] - target);
             }
         };
@@ -661,6 +727,116 @@ pub fn residuals_of_runs(
     };
     for obs in runs {
         out.par_extend(obs.par_iter().map(residual));
+    }
+}
+
+/// How a parameter of the fit moves a view's pixels, per unit: a radial term through the
+/// lens's derivative, a pose-bias axis through the rigid motion it gives each view's points
+/// (per view: the change of the render-to-true-camera transform per unit).
+enum Motion {
+    Radial(usize),
+    Rigid(Vec<RigidMatrix>),
+}
+
+/// The Jacobian of [`residuals_of_runs`] in the parameters `free` at `p` (one row of
+/// `free.len()` values per observation, into `out`), by the chain rule: the real image's
+/// gradient where the point is seen ([`bicubic_gradient`]) times the pixel's motion, the
+/// lens's derivatives ([`CameraModel::project_with_jacobian`]) applied to the point's motion
+/// (a pose-bias axis's: the difference of the transforms over `step`, exact since a transform
+/// is affine in the point). One image sample and one projection per observation, where a
+/// difference of residuals repeats both per parameter; it equals the forward-difference
+/// Jacobian up to the residuals' curvature over a step.
+pub fn jacobian_of_runs(
+    runs: &[&[Observation]],
+    views: &[ViewImages],
+    p: &[f64; 8],
+    free: &[usize],
+    step: &[f64],
+    out: &mut Vec<f64>,
+) {
+    out.clear();
+    let k = free.len();
+    let warp = Warp::new(views, p);
+    let motions: Vec<Motion> = free
+        .iter()
+        .zip(step)
+        .map(|(&i, h)| {
+            if i < 2 {
+                return Motion::Radial(i);
+            }
+            let mut q = *p;
+            q[i] += h;
+            let moved = Warp::new(views, &q).moved;
+            Motion::Rigid(
+                moved
+                    .iter()
+                    .zip(&warp.moved)
+                    .map(|(a, b)| RigidMatrix {
+                        r: std::array::from_fn(|r| {
+                            std::array::from_fn(|c| (a.r[r][c] - b.r[r][c]) / h)
+                        }),
+                        t: std::array::from_fn(|c| (a.t[c] - b.t[c]) / h),
+                    })
+                    .collect(),
+            )
+        })
+        .collect();
+    // The pixel of `point` in `view` and its motion per unit of each free parameter.
+    let seen = |view: usize, point: [f64; 3]| {
+        let j = warp.cams[view].project_with_jacobian(warp.moved[view].apply(point))?;
+        let mut motion = [[0.0; 2]; 8];
+        for (m, how) in motion.iter_mut().zip(&motions) {
+            *m = match how {
+                Motion::Radial(t) => [j.radial[0][*t], j.radial[1][*t]],
+                Motion::Rigid(per_view) => {
+                    let d = per_view[view].apply(point);
+                    let dot = |row: &[f64; 3]| row[0] * d[0] + row[1] * d[1] + row[2] * d[2];
+                    [dot(&j.point[0]), dot(&j.point[1])]
+                }
+            };
+        }
+        Some((j.pixel, motion))
+    };
+    // Adds `sign` times the derivatives of the real image of `view` at `point` to `row`.
+    let add = |row: &mut [f64; 8], view: usize, point: [f64; 3], sign: f64| {
+        let v = &views[view];
+        let Some((q, motion)) = seen(view, point) else {
+            return;
+        };
+        let Some(g) = bicubic_gradient(&v.real, v.width, v.height, q[0], q[1]) else {
+            return;
+        };
+        for (d, m) in row.iter_mut().zip(&motion) {
+            *d += sign * (g[0] * m[0] + g[1] * m[1]);
+        }
+    };
+    let row = |o: &Observation| {
+        let mut row = [0.0; 8];
+        match o.against {
+            Against::Render(_) => add(&mut row, o.view, o.point, 1.0),
+            Against::Mate(view, point) => {
+                add(&mut row, o.view, o.point, 1.0);
+                add(&mut row, view, point, -1.0);
+            }
+            Against::Sighting(axis, _) => {
+                if let Some((_, motion)) = seen(o.view, o.point) {
+                    for (d, m) in row.iter_mut().zip(&motion) {
+                        *d = m[axis];
+                    }
+                }
+            }
+        }
+        row.map(|d| o.weight * d)
+    };
+    let n: usize = runs.iter().map(|r| r.len()).sum();
+    out.resize(n * k, 0.0);
+    let mut rest = out.as_mut_slice();
+    for obs in runs {
+        let (mine, after) = rest.split_at_mut(obs.len() * k);
+        rest = after;
+        mine.par_chunks_mut(k.max(1))
+            .zip(obs.par_iter())
+            .for_each(|(dst, o)| dst.copy_from_slice(&row(o)[..k]));
     }
 }
 
@@ -711,16 +887,28 @@ pub fn fit_runs(
         p
     };
     let f = |q: &[f64], out: &mut Vec<f64>| residuals_of_runs(runs, views, &expand(q), out);
-    let s = solve(
-        &Problem {
-            residuals: &f,
-            start: idx.iter().map(|&i| start[i]).collect(),
-            lower: idx.iter().map(|&i| LOWER[i]).collect(),
-            upper: idx.iter().map(|&i| UPPER[i]).collect(),
-            step: idx.iter().map(|&i| STEP[i]).collect(),
-        },
-        MAX_ITER,
-    );
+    let pb = Problem {
+        residuals: &f,
+        start: idx.iter().map(|&i| start[i]).collect(),
+        lower: idx.iter().map(|&i| LOWER[i]).collect(),
+        upper: idx.iter().map(|&i| UPPER[i]).collect(),
+        step: idx.iter().map(|&i| STEP[i]).collect(),
+    };
+    let jac = |q: &[f64], out: &mut Vec<f64>| {
+        let step: Vec<f64> = (0..q.len()).map(|c| forward_step(&pb, q, c)).collect();
+        jacobian_of_runs(runs, views, &expand(q), &idx, &step, out);
+    };
+    let t0 = std::time::Instant::now();
+    let s = solve_with_jacobian(&pb, &jac, MAX_ITER, MIN_GAIN);
+    if std::env::var_os("REGOLITH_TRACE_FIT").is_some() {
+        eprintln!(
+            "TRACEFIT n={} k={} iter={} {:.2}s",
+            s.n,
+            idx.len(),
+            s.iterations,
+            t0.elapsed().as_secs_f64()
+        );
+    }
     let mut std_err = [0.0; 8];
     for (&i, e) in idx.iter().zip(&s.std_err) {
         std_err[i] = *e;
@@ -967,6 +1155,58 @@ mod tests {
                 f.params[0]
             );
             assert!(f.mse < 0.1 * before, "{} of {before}", f.mse);
+        }
+    }
+
+    #[test]
+    fn the_chain_rule_jacobian_is_the_residuals_forward_differences() {
+        // Render samples, stereo pairs and a sighting, through a distorted lens with a rig
+        // bias, at parameters away from zero.
+        let lens = [-0.247, 0.059];
+        let mut truth = [0.0; 8];
+        truth[3] = 0.004;
+        truth[5] = 0.3;
+        let (views, obs, pairs) = stereo_fixture(lens, -0.02, &truth, &head());
+        let mut all: Vec<Observation> = obs.iter().chain(&pairs).step_by(7).copied().collect();
+        all.extend((0..2).map(|axis| Observation {
+            view: 1,
+            point: [0.1, -0.05, 2.0],
+            weight: 30.0,
+            against: Against::Sighting(axis, 150.0),
+        }));
+        let p = [-0.01, 0.003, 0.001, 0.002, -0.001, 0.1, -0.2, 0.15];
+        let free: Vec<usize> = (0..8).collect();
+        let runs = [&all[..all.len() / 2], &all[all.len() / 2..]];
+        let mut jac = Vec::new();
+        jacobian_of_runs(&runs, &views, &p, &free, &STEP, &mut jac);
+        let (mut r0, mut r1) = (Vec::new(), Vec::new());
+        residuals_of_runs(&runs, &views, &p, &mut r0);
+        assert_eq!(jac.len(), 8 * r0.len());
+        for c in free {
+            let mut q = p;
+            q[c] += STEP[c];
+            residuals_of_runs(&runs, &views, &q, &mut r1);
+            let fd: Vec<f64> = r1.iter().zip(&r0).map(|(a, b)| (a - b) / STEP[c]).collect();
+            let analytic: Vec<f64> = jac.iter().skip(c).step_by(8).copied().collect();
+            let norm = fd.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let diff = fd
+                .iter()
+                .zip(&analytic)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(norm > 0.0, "parameter {c} moves nothing");
+            assert!(diff < 0.02 * norm, "parameter {c}: {diff} of {norm}");
+            // The sightings' rows are the projections' motions themselves.
+            let n = r0.len();
+            for row in n - 2..n {
+                assert!(
+                    (fd[row] - analytic[row]).abs() < 1e-3 * fd[row].abs().max(1.0),
+                    "parameter {c}, sighting {row}: {} for {}",
+                    analytic[row],
+                    fd[row]
+                );
+            }
         }
     }
 
