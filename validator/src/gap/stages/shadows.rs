@@ -49,13 +49,36 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
         );
         m
     };
-    // Every view's camera rays, traced once: a light's direction changes only their shading
-    // (the search renders each view under some 30 lights, and a fold's search again).
-    let hits: Vec<PrimaryHits> = ctx
+    let trace = |v: &GapView| model.primary_hits(&ctx.scene, &v.camera_model, &v.at, 1);
+    let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
+    let record = (ctx.light.azimuth_deg, ctx.light.elevation_deg);
+    // The views lit and shadowed by the recorded light, each from its camera rays traced for
+    // it alone: most campaigns stop at the test below, and the rays of every view kept
+    // together are the stage's largest memory (estec: 94 MB a view, 1.5 GB).
+    let (lit, shadowed): (Vec<Prediction>, Vec<Prediction>) = ctx
         .views
         .iter()
-        .map(|v| model.primary_hits(&ctx.scene, &v.camera_model, &v.at, 1))
-        .collect();
+        .map(|v| {
+            let hits = trace(v);
+            (
+                predict_relit(&ctx.scene, &ctx.light, v, model, &hits),
+                predict_relit(&ctx.scene, &ctx.light, v, &with(record), &hits),
+            )
+        })
+        .unzip();
+    // A light that casts no shadow the views would see has nothing to test or refine, and
+    // shadows that make the prediction worse where the record casts them are not in the scene
+    // (see `shadows::MIN_EXPLAINED_AT_RECORD`): the direction search would only confirm it.
+    let at_record = shadows::evidence(&shadow_views(ctx, &means, &lit, &shadowed));
+    if at_record.pixels < shadows::MIN_SHADOW_PIXELS
+        || at_record.explained < shadows::MIN_EXPLAINED_AT_RECORD
+    {
+        return;
+    }
+    // Every view's camera rays, traced once more and kept: a light's direction changes only
+    // their shading (the search renders each view under some 30 lights, and a fold's search
+    // again).
+    let hits: Vec<PrimaryHits> = ctx.views.iter().map(trace).collect();
     // View `i` under `m` and `light`, from its traced rays.
     let relit = |i: usize, m: &SensorModel, light: &Light| {
         predict_relit(&ctx.scene, light, &ctx.views[i], m, &hits[i])
@@ -72,19 +95,6 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
         };
         all(model, &light)
     };
-    let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
-    let record = (ctx.light.azimuth_deg, ctx.light.elevation_deg);
-    let lit = all(model, &ctx.light);
-    let shadowed = all(&with(record), &ctx.light);
-    // A light that casts no shadow the views would see has nothing to test or refine, and
-    // shadows that make the prediction worse where the record casts them are not in the scene
-    // (see `shadows::MIN_EXPLAINED_AT_RECORD`): the direction search would only confirm it.
-    let at_record = shadows::evidence(&shadow_views(ctx, &means, &lit, &shadowed));
-    if at_record.pixels < shadows::MIN_SHADOW_PIXELS
-        || at_record.explained < shadows::MIN_EXPLAINED_AT_RECORD
-    {
-        return;
-    }
     // The direction first: the campaign records its light as surveyed, a few degrees off, and
     // shadows tested where a wrong light casts them are half missed.
     let near = shadows::near_shadows(&shadow_views(ctx, &means, &lit, &shadowed));
