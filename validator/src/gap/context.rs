@@ -151,6 +151,18 @@ impl<'a> Ctx<'a> {
     /// when the scene is seen through `model`'s geometry: where [`Metrics::shadow_rms_dn`] is
     /// measured.
     pub(crate) fn shadow_pixels(&self, model: &SensorModel) -> Vec<Vec<bool>> {
+        self.shadow_pixels_and_flat(model, None).0
+    }
+
+    /// [`Ctx::shadow_pixels`] and, given the texture measure's uniform albedo `flat`
+    /// ([`crate::gap::stages::texture::flat_albedo`]), `model`'s renders under it: all from
+    /// one set of camera rays per view (the flat renders' albedo is then exactly the uniform
+    /// one, where a render of a uniform grid interpolates it to within a rounding).
+    pub(crate) fn shadow_pixels_and_flat(
+        &self,
+        model: &SensorModel,
+        flat: Option<f32>,
+    ) -> (Vec<Vec<bool>>, Option<Vec<Prediction>>) {
         let mut lit = model.clone();
         lit.effects.retain(|e| e.name() != "shadows");
         let mut shadowed = lit.clone();
@@ -159,24 +171,42 @@ impl<'a> Ctx<'a> {
             elevation_deg: self.light.elevation_deg,
         });
         // Both from one set of camera rays' first hits: the same bytes as two renders.
-        self.views
+        let (pixels, flats): (Vec<Vec<bool>>, Vec<Option<Prediction>>) = self
+            .views
             .iter()
             .map(|v| {
                 let hits = lit.primary_hits(&self.scene, &v.camera_model, &v.at, 1);
                 let l = predict_relit(&self.scene, &self.light, v, &lit, &hits);
                 let s = predict_relit(&self.scene, &self.light, v, &shadowed, &hits);
-                shadows::shadow_pixels(&l.dn, &s.dn, &l.mask, v.width, v.height)
+                let f = flat.map(|a| {
+                    predict_relit(
+                        &self.scene,
+                        &self.light,
+                        v,
+                        model,
+                        &hits.with_geometry_albedo(a),
+                    )
+                });
+                (
+                    shadows::shadow_pixels(&l.dn, &s.dn, &l.mask, v.width, v.height),
+                    f,
+                )
             })
-            .collect()
+            .unzip();
+        (pixels, flats.into_iter().collect())
     }
 
     /// Measures `preds` (made with `model`) against the real views; with a `texture-lowpass`
     /// in `model`, the spectrum is taken on renders with its texture detail.
+    ///
+    /// `flat`, when given, are `model`'s renders under the texture measure's uniform albedo
+    /// ([`Ctx::shadow_pixels_and_flat`]); otherwise they are made here.
     pub(crate) fn measure(
         &self,
         preds: &[Prediction],
         model: &SensorModel,
         shadow: &[Vec<bool>],
+        flat: Option<Vec<Prediction>>,
     ) -> Metrics {
         let detailed_geometry = model.detailed(self.geometry);
         let detailed = detailed_geometry.as_ref().map(|g| {
@@ -187,9 +217,10 @@ impl<'a> Ctx<'a> {
                 .collect::<Vec<_>>()
         });
         let inputs = match self.geometry {
-            Geometry::Heightfield { grid, albedo } => {
-                Some(TextureInputs::new(self, grid, albedo, model))
-            }
+            Geometry::Heightfield { grid, albedo } => Some(match flat {
+                Some(flat) => TextureInputs::with_flat(self, model, flat),
+                None => TextureInputs::new(self, grid, albedo, model),
+            }),
             _ => None,
         };
         let shading: Option<Vec<&[f32]>> = inputs

@@ -320,7 +320,7 @@ pub fn measure_model_on(
 ) -> Result<Metrics, ReaderError> {
     let ctx = Ctx::load(view, geometry, opts)?;
     let shadow = ctx.shadow_pixels(reference);
-    Ok(ctx.measure(&ctx.predict_all(model), model, &shadow))
+    Ok(ctx.measure(&ctx.predict_all(model), model, &shadow, None))
 }
 
 /// The workflow's steps in the order they run, each with its share of a run's time, for
@@ -416,8 +416,12 @@ fn run_steps(
     let preds_before = ctx.predict_all(&model_before);
     // Where the campaign light casts shadows, seen through the stored geometry: the same
     // pixels before and after, so the two shadow figures compare like with like.
-    let shadow = ctx.shadow_pixels(&model_before);
-    let metrics_before = ctx.measure(&preds_before, &model_before, &shadow);
+    let flat = match geometry {
+        Geometry::Heightfield { albedo, .. } => Some(stages::texture::flat_albedo(albedo)),
+        _ => None,
+    };
+    let (shadow, flat) = ctx.shadow_pixels_and_flat(&model_before, flat);
+    let metrics_before = ctx.measure(&preds_before, &model_before, &shadow, flat);
     let witness = NoiseWitness::new(&ctx, &preds_before);
     let mut model = model_before.clone();
     let mut found = Vec::new();
@@ -455,7 +459,7 @@ fn run_steps(
     let metrics_after = if model == model_before {
         metrics_before.clone()
     } else {
-        ctx.measure(&preds_after, &model, &shadow)
+        ctx.measure(&preds_after, &model, &shadow, None)
     };
     let masked = |p: &Prediction| -> Vec<f32> {
         p.dn.iter()

@@ -47,6 +47,20 @@ pub struct PrimaryHits {
     hits: Vec<Option<SurfaceSample>>,
 }
 
+impl PrimaryHits {
+    /// The same hits with the geometry's albedo `albedo` everywhere (the spheres keep theirs):
+    /// the view of the same geometry under a uniform texture, without tracing it again.
+    pub fn with_geometry_albedo(&self, albedo: f32) -> PrimaryHits {
+        let mut out = self.clone();
+        for s in out.hits.iter_mut().flatten() {
+            if s.object == 0 {
+                s.albedo = albedo;
+            }
+        }
+        out
+    }
+}
+
 /// The first hit of every camera ray of `view` (see [`PrimaryHits`]).
 pub(crate) fn primary_hits(scene: &Scene<'_>, view: &View, opts: &RenderOptions) -> PrimaryHits {
     let rays = CameraRays::new(scene, view, opts);

@@ -20,17 +20,23 @@ pub(crate) struct TextureInputs {
     pub(crate) poses: Vec<Pose>,
 }
 
+/// The uniform albedo of the texture measure's flat renders: the texture's mean.
+pub(crate) fn flat_albedo(albedo: &AlbedoGrid) -> f32 {
+    let mean =
+        albedo.value.iter().map(|&v| f64::from(v)).sum::<f64>() / albedo.value.len().max(1) as f64;
+    mean as f32
+}
+
 impl TextureInputs {
+    /// The inputs of `model` on the entry's `grid` and `albedo`, its flat renders made here.
     pub(crate) fn new(
         ctx: &Ctx<'_>,
         grid: &HeightGrid,
         albedo: &AlbedoGrid,
         model: &SensorModel,
     ) -> Self {
-        let mean = albedo.value.iter().map(|&v| f64::from(v)).sum::<f64>()
-            / albedo.value.len().max(1) as f64;
         let mut uniform = albedo.clone();
-        uniform.value.fill(mean as f32);
+        uniform.value.fill(flat_albedo(albedo));
         let flat_geometry = Geometry::Heightfield {
             grid: grid.clone(),
             albedo: uniform,
@@ -41,6 +47,11 @@ impl TextureInputs {
             .iter()
             .map(|v| predict(&flat_scene, &ctx.light, v, model, 1))
             .collect();
+        Self::with_flat(ctx, model, flat)
+    }
+
+    /// The inputs of `model` given its `flat` renders (the views under [`flat_albedo`]).
+    pub(crate) fn with_flat(ctx: &Ctx<'_>, model: &SensorModel, flat: Vec<Prediction>) -> Self {
         // Ratios are taken on radiance: the response curve and black level undone (a curve
         // left in bends the ratios and read mini seed 102's faithful texture 1.4 mm blurrier).
         let linear = |dn: &[f32]| crate::sensor::image::undo_response(&model.effects, dn);
