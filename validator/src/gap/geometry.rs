@@ -740,7 +740,7 @@ enum Motion {
 
 /// The Jacobian of [`residuals_of_runs`] in the parameters `free` at `p` (one row of
 /// `free.len()` values per observation, into `out`), by the chain rule: the real image's
-/// gradient where the point is seen ([`bicubic_gradient`]) times the pixel's motion, the
+/// gradient where the point is seen (`bicubic_gradient`) times the pixel's motion, the
 /// lens's derivatives ([`CameraModel::project_with_jacobian`]) applied to the point's motion
 /// (a pose-bias axis's: the difference of the transforms over `step`, exact since a transform
 /// is affine in the point). One image sample and one projection per observation, where a
