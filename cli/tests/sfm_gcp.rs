@@ -19,11 +19,11 @@ mod common;
 use std::path::Path;
 
 use regolith_compiler::compile::{compile, options};
-use regolith_compiler::encode::exr::read_grey_f32;
 use regolith_compiler::ingest::campaign;
 use regolith_compiler::stages::sfm_align::Similarity;
 use regolith_corpus::{generate, GenerateOptions, Preset};
 use regolith_reader::{Database, ReleaseView, Writer};
+use regolith_tests::height_truth::{heights_vs_truth, HeightTruth};
 use serde_json::Value;
 
 use common::regolith;
@@ -73,65 +73,6 @@ fn errors(found: &Similarity, want: &Similarity) -> (f64, f64, f64) {
         found.angle_to_deg(want),
         dt,
     )
-}
-
-/// True heights, bilinear.
-struct Heights {
-    origin: [f64; 2],
-    cell: f64,
-    w: usize,
-    h: usize,
-    z: Vec<f32>,
-}
-
-impl Heights {
-    fn load(camp: &Path) -> Heights {
-        let meta = json(&camp.join("truth/height.json"));
-        let (w, h, z) =
-            read_grey_f32(&std::fs::read(camp.join("truth/height.exr")).unwrap()).unwrap();
-        Heights {
-            origin: array(&meta["origin_m"]),
-            cell: meta["cell_m"].as_f64().unwrap(),
-            w,
-            h,
-            z,
-        }
-    }
-
-    fn at(&self, x: f64, y: f64) -> Option<f64> {
-        let fc = (x - self.origin[0]) / self.cell;
-        let fr = (self.origin[1] - y) / self.cell;
-        if fc < 0.0 || fr < 0.0 || fc >= (self.w - 1) as f64 || fr >= (self.h - 1) as f64 {
-            return None;
-        }
-        let (c, r) = (fc.floor() as usize, fr.floor() as usize);
-        let (tx, ty) = (fc - c as f64, fr - r as f64);
-        let z = |c: usize, r: usize| f64::from(self.z[r * self.w + c]);
-        Some(
-            (z(c, r) * (1.0 - tx) + z(c + 1, r) * tx) * (1.0 - ty)
-                + (z(c, r + 1) * (1.0 - tx) + z(c + 1, r + 1) * tx) * ty,
-        )
-    }
-
-    /// RMS of `entry`'s heights against the truth over its valid cells, and the cell count.
-    fn rms(&self, view: &ReleaseView, entry: &str) -> (f64, usize) {
-        let hf = view.heightfield(entry).unwrap();
-        let (mut sum, mut n) = (0.0, 0usize);
-        for r in 0..hf.meta.height {
-            for c in 0..hf.meta.width {
-                let i = (r * hf.meta.width + c) as usize;
-                if hf.valid[i] == 0 {
-                    continue;
-                }
-                let [x, y] = hf.meta.cell_centre(c, r);
-                if let Some(zt) = self.at(x, y) {
-                    sum += (f64::from(hf.heights[i]) - zt).powi(2);
-                    n += 1;
-                }
-            }
-        }
-        ((sum / n as f64).sqrt(), n)
-    }
 }
 
 /// The alignment of reconstruction `sfm` in a release: summary row and full report.
@@ -216,7 +157,7 @@ fn sfm_aligns_from_ground_control_points_with_and_without_scans() {
     )
     .unwrap();
     let truth = true_sfm_to_ground(&camp);
-    let heights = Heights::load(&camp);
+    let heights = HeightTruth::load(&camp).unwrap();
 
     // 1. Control points + laser.
     let toml = std::fs::read_to_string(camp.join("campaign.toml")).unwrap();
@@ -288,7 +229,8 @@ fn sfm_aligns_from_ground_control_points_with_and_without_scans() {
         .map(|c| &c["name"])
         .collect();
     assert_eq!(used, names);
-    let (sfm_rms, cells) = heights.rms(&view, "sfm/0.02");
+    let s = heights_vs_truth(&view, "sfm/0.02", &heights).unwrap();
+    let (sfm_rms, cells) = (s.rms, s.cells);
     println!(
         "control+laser: sfm/0.02 vs true heights: RMS {:.2} mm over {cells} cells",
         sfm_rms * 1e3
@@ -363,7 +305,8 @@ fn sfm_aligns_from_ground_control_points_with_and_without_scans() {
         gcp_rms > 0.0 && gcp_rms < noise_rms + 0.0005,
         "GCP RMS {gcp_rms} vs noise {noise_rms}"
     );
-    let (rms, cells) = heights.rms(&view, "sfm/0.02");
+    let s = heights_vs_truth(&view, "sfm/0.02", &heights).unwrap();
+    let (rms, cells) = (s.rms, s.cells);
     println!(
         "control: sfm/0.02 vs true heights: RMS {:.2} mm over {cells} cells",
         rms * 1e3
