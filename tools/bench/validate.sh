@@ -20,25 +20,7 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 entry=${2:-laser/0.01}
 
-if ! python3 -c 'import cv2, numpy' 2>/dev/null; then
-  echo "installing opencv-python-headless (pip) ..." >&2
-  python3 -m pip install --quiet opencv-python-headless numpy >&2
-fi
-(cd "$root" && cargo build --release -q -p regolith-cli)
-bin=$root/target/release/regolith
-
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-if [ $# -ge 1 ]; then
-  campaign=$(cd "$1" && pwd)
-else
-  campaign=$work/campaign
-  "$bin" corpus generate --preset mini --seed 301 --renders "$root/corpus/renders" --no-render \
-    --out "$campaign" -q
-fi
-
-echo "compiling $campaign ..." >&2
-"$bin" compile "$campaign" --db "$work/db" -q --json >/dev/null
+source "$root/tools/bench/setup.sh"
 echo "validating $entry ..." >&2
 /usr/bin/time -f '%e %U %S %M' -o "$work/time" \
   "$bin" validate "$work/db" --entry "$entry" -q --json >"$work/validate.json" || true
