@@ -286,6 +286,62 @@ fn hidden_gamma_and_vignetting_are_both_named() {
     assert!((s - 0.2).abs() < 0.05, "strength {s}");
 }
 
+/// A constant exposure over the laser entry is the texture's level in the camera's terms: its
+/// gain is reported as the entry's texture transfer, not an exposure of the camera, `--apply`
+/// writes it into the model, and a second run on the child release renders through it and
+/// finds no level left to change.
+#[test]
+fn a_hidden_gain_is_the_texture_transfer_and_is_applied() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = campaign(
+        dir.path(),
+        &[
+            "--hidden-effect",
+            "exposure",
+            "--effect-param",
+            "exposure.gain=1.25",
+            "--effect-param",
+            "exposure.offset=0.0",
+        ],
+    );
+    let v = regolith(&["gap", &db, "--entry", "laser/0.01", "--apply"]);
+    common::assert_matches_doc_schema("gap", &v);
+    let gain = v["texture_transfer"]["gain"].as_f64().unwrap();
+    assert!((gain - 1.25).abs() < 0.125, "transfer gain {gain}");
+    // An exposure, if named, is the camera's offset alone.
+    if let Some(n) = v["named"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["effect"] == "exposure")
+    {
+        assert_eq!(n["params"]["gain"].as_f64(), Some(1.0), "{n}");
+    }
+    let child = v["applied"]["release"].as_str().unwrap();
+    let database = regolith_reader::Database::open(&db).unwrap();
+    let model =
+        regolith_validator::sensor::stored_model(&database.release(child).unwrap(), "laser/0.01")
+            .unwrap();
+    assert_eq!(model.texture_transfer.map(|t| t.gain), Some(gain));
+    let again = regolith(&["gap", &db, "--release", child, "--entry", "laser/0.01"]);
+    assert!(
+        again["texture_transfer"].is_null(),
+        "{}",
+        again["texture_transfer"]
+    );
+    assert!(
+        !named(&again).contains(&"exposure".to_string()),
+        "{:?}",
+        named(&again)
+    );
+    assert!(
+        again["gap_before"].as_f64().unwrap() < 0.8 * v["gap_before"].as_f64().unwrap(),
+        "{} then {}",
+        v["gap_before"],
+        again["gap_before"]
+    );
+}
+
 #[test]
 fn hidden_gamma_is_named_alone() {
     let v = gap(&[

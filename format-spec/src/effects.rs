@@ -81,6 +81,17 @@ pub enum Effect {
     },
 }
 
+/// How the entry's texture values become the albedo the camera sees, an entry property stored
+/// beside a `sensor-model`'s effects (registry, 1.12): renders scale the texture's albedo by
+/// `gain`. A texture measured by another instrument (laser reflectance, an SfM model's vertex
+/// colours) is a linear albedo estimate of *that* instrument, so its level relative to the
+/// camera's is unknown, and over one entry a constant exposure gain cannot be told from it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TextureTransfer {
+    /// Camera albedo per texture albedo.
+    pub gain: f64,
+}
+
 /// The plausible range of one effect parameter, and its neutral (no-effect) value.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParamRange {

@@ -48,9 +48,7 @@ impl CaptureRenderer for ModelCaptures {
             })
             .collect();
         let render_scene = Scene::new(&geometry).with_spheres(balls);
-        let model = SensorModel {
-            effects: scene.effects.to_vec(),
-        };
+        let model = SensorModel::from(scene.effects.to_vec());
         let (opts, _) = model.render_options(&RenderOptions {
             distort: true,
             shadows: false,

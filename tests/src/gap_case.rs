@@ -173,10 +173,34 @@ impl CaseResult {
         self.gap.named.iter().map(|n| n.effect.clone()).collect()
     }
 
-    /// Fitted value of `effect`'s parameter `param`, if the effect was named.
+    /// What the run found of the catalogue: the named effects, and `exposure` where it
+    /// reported the texture's transfer without naming one. Over one entry a constant exposure's
+    /// gain is the texture's level in the camera's terms, which the workflow reports as the
+    /// entry's `texture_transfer`; on the model's own campaigns the laser texture is the
+    /// albedo the camera sees (to the reflectance's own bias of about 2 %), so there a reported
+    /// transfer is a hidden exposure's gain. On another renderer's campaigns the texture has a
+    /// level of its own, and only [`CaseResult::named`] counts.
+    pub fn found(&self) -> Vec<String> {
+        let mut out = self.named();
+        if self.gap.texture_transfer.is_some() && !out.iter().any(|n| n == "exposure") {
+            out.push("exposure".into());
+        }
+        out
+    }
+
+    /// Fitted value of `effect`'s parameter `param`, if the effect was named. An exposure's
+    /// gain is the texture transfer's times the named exposure's ([`CaseResult::found`]).
     pub fn fitted(&self, effect: &str, param: &str) -> Option<f64> {
-        let n = self.gap.named.iter().find(|n| n.effect == effect)?;
-        n.params.get(param).copied()
+        let named = self.gap.named.iter().find(|n| n.effect == effect);
+        match (&self.gap.texture_transfer, effect, param) {
+            (Some(t), "exposure", "gain") => Some(
+                t.gain
+                    * named
+                        .and_then(|n| n.params.get(param).copied())
+                        .unwrap_or(1.0),
+            ),
+            _ => named?.params.get(param).copied(),
+        }
     }
 
     /// The true hidden effect called `name`.
@@ -194,8 +218,13 @@ impl CaseResult {
 
     /// The standard error the workflow reported for `effect`'s parameter `param`.
     pub fn std_err(&self, effect: &str, param: &str) -> Option<f64> {
-        let n = self.gap.named.iter().find(|n| n.effect == effect)?;
-        n.std_err.get(param).copied()
+        match (&self.gap.texture_transfer, effect, param) {
+            (Some(t), "exposure", "gain") => Some(t.std_err),
+            _ => {
+                let n = self.gap.named.iter().find(|n| n.effect == effect)?;
+                n.std_err.get(param).copied()
+            }
+        }
     }
 
     /// One line: hidden → named, every true parameter against its fit, gap before → after, and
@@ -242,7 +271,14 @@ impl CaseResult {
             self.gap.texture.as_ref().map_or(String::new(), |t| format!(
                 ", texture excess blur {:.1} mm",
                 t.excess_m * 1e3
-            ))
+            )) + &self
+                .gap
+                .texture_transfer
+                .as_ref()
+                .map_or(String::new(), |t| format!(
+                    ", texture transfer {:.3}±{:.3}",
+                    t.gain, t.std_err
+                ))
         )
     }
 }

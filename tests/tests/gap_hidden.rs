@@ -121,17 +121,26 @@ fn rel(fitted: f64, truth: f64) -> f64 {
 
 /// Displacement (m) a pose bias makes at a point 1.5 m along the optical axis.
 fn bias_displacement(e: &Effect) -> [f64; 3] {
-    let model = SensorModel { effects: vec![*e] };
+    let model = SensorModel::from(vec![*e]);
     let p = model
         .pose(&Placement::lone(Pose::IDENTITY))
         .transform_point([0.0, 0.0, 1.5]);
     [p[0], p[1], p[2] - 1.5]
 }
 
+/// The effect `name` as the run found it ([`CaseResult::found`]; an exposure's gain through the
+/// texture transfer).
 fn fitted_effect(r: &CaseResult, name: &str) -> Option<Effect> {
-    let n = r.gap.named.iter().find(|n| n.effect == name)?;
-    let values: BTreeMap<&str, f64> = n.params.iter().map(|(k, v)| (k.as_str(), *v)).collect();
-    Some(Effect::neutral(name)?.with_params(&values))
+    if !r.found().iter().any(|n| n == name) {
+        return None;
+    }
+    let neutral = Effect::neutral(name)?;
+    let values: BTreeMap<&str, f64> = neutral
+        .params()
+        .into_keys()
+        .filter_map(|k| Some((k, r.fitted(name, k)?)))
+        .collect();
+    Some(neutral.with_params(&values))
 }
 
 /// Parameter checks of one named, hidden effect; every check's figure appended to `seen`, the
@@ -278,7 +287,7 @@ fn judge(
     bad: &mut Vec<String>,
 ) {
     let mut case_bad = Vec::new();
-    let named = r.named();
+    let named = r.found();
     if !matrix.add(case.label, case.hidden, &named) {
         case_bad.push(format!("named {named:?}, hidden {:?}", case.hidden));
     }
@@ -397,7 +406,7 @@ fn axis_misses(r: &CaseResult, label: &str, seed: u64, line: &str) -> Vec<String
         .filter(|c| c.what.starts_with(&format!("{label}.")) && !c.ok())
         .map(|c| format!("seed {seed}: {c}: {line}"))
         .collect();
-    if r.named() != [label] {
+    if r.found() != [label] {
         bad.push(format!("seed {seed}: {line}"));
     }
     bad

@@ -10,11 +10,13 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use regolith_format::camera_model::CameraModel;
 use regolith_format::frames::Pose;
-use regolith_validator::render::{AlbedoGrid, RenderOptions, View};
-use regolith_validator::sensor::{quantise_u8, Effect, Placement, SensorModel};
+use regolith_validator::render::{
+    AlbedoGrid, Geometry, HeightGrid, Light, RenderOptions, Scene, View,
+};
+use regolith_validator::sensor::{quantise_u8, Effect, Placement, SensorModel, TextureTransfer};
 
 fn model(effects: Vec<Effect>) -> SensorModel {
-    SensorModel { effects }
+    SensorModel::from(effects)
 }
 
 fn cam(w: u32, h: u32) -> CameraModel {
@@ -298,4 +300,59 @@ fn quantise_rounds_and_clamps() {
         quantise_u8(&[-3.0, 0.49, 0.5, 127.4, 254.6, 300.0, f32::NAN]),
         vec![0, 0, 1, 127, 255, 255, 0]
     );
+}
+
+#[test]
+fn a_texture_transfer_scales_the_albedo_and_older_bodies_read_without_one() {
+    let n = 21;
+    let geometry = Geometry::Heightfield {
+        grid: HeightGrid {
+            origin_m: [0.0, 0.0],
+            cell_m: 0.05,
+            width: n,
+            height: n,
+            z: (0..n * n)
+                .map(|i| 0.02 * ((i % n) as f32 * 0.7).sin())
+                .collect(),
+        },
+        albedo: AlbedoGrid {
+            origin_m: [0.0, 0.0],
+            cell_m: 0.05,
+            width: n,
+            height: n,
+            value: (0..n * n)
+                .map(|i| 0.2 + 0.1 * ((i / n) % 3) as f32)
+                .collect(),
+        },
+    };
+    let scene = Scene::new(&geometry);
+    let light = Light {
+        azimuth_deg: 200.0,
+        elevation_deg: 50.0,
+        ambient: 0.2,
+    };
+    let view = View::look_at(cam(48, 40), [0.5, -0.5, 1.5], [0.5, -0.5, 0.0]);
+    let at = Placement::lone(view.ground_from_camera);
+    let vignetted = vec![Effect::Vignetting { strength: 0.3 }];
+    let plain = model(vignetted.clone()).render(&scene, &light, &view.camera, &at, 1, None);
+    let mut with = model(vignetted);
+    with.texture_transfer = Some(TextureTransfer { gain: 1.25 });
+    let scaled = with.render(&scene, &light, &view.camera, &at, 1, None);
+    let lit: Vec<usize> = (0..plain.dn.len())
+        .filter(|&i| plain.rendered.mask[i] != 0)
+        .collect();
+    assert!(lit.len() > plain.dn.len() / 2);
+    for i in lit {
+        let (a, b) = (plain.dn[i], scaled.dn[i]);
+        assert!((b - 1.25 * a).abs() <= 1e-3 * a.max(1.0), "{a} {b}");
+    }
+    // A 1.11 body has no transfer; the field round-trips and is left out when absent.
+    let old: SensorModel =
+        serde_json::from_str(r#"{"effects":[{"effect":"gamma","gamma":1.5}]}"#).unwrap();
+    assert_eq!(old, model(vec![Effect::Gamma { gamma: 1.5 }]));
+    assert!(!serde_json::to_string(&old)
+        .unwrap()
+        .contains("texture_transfer"));
+    let back: SensorModel = serde_json::from_str(&serde_json::to_string(&with).unwrap()).unwrap();
+    assert_eq!(back, with);
 }

@@ -89,7 +89,7 @@ pub fn run(campaign: &Path, out: &Path, json: bool) -> anyhow::Result<Outcome> {
                 &GapOptions::default(),
                 &progress.part(&format!("gap on {entry}"), 0.5, 0.9),
             )?;
-            let applied = if result.named.is_empty() {
+            let applied = if result.model_after == result.model_before {
                 None
             } else {
                 Some(apply::write_model(

@@ -39,7 +39,7 @@ pub fn run(
     let progress = Progress::new();
     let result = gap::run_observed(&view, entry, &opts, &|step, f| progress.report(step, f))?;
     let seconds = progress.finish();
-    let applied = if apply_model && !result.named.is_empty() {
+    let applied = if apply_model && result.model_after != result.model_before {
         // Locked for the write alone: the fit above ran without holding the database.
         let writer = Writer::open_waiting(db, &|| {
             eprintln!("waiting for another process writing to {}", db.display());
@@ -47,6 +47,7 @@ pub fn run(
         let summary = json!({
             "release": view.label(),
             "named": result.named.iter().map(|n| &n.effect).collect::<Vec<_>>(),
+            "texture_transfer": result.texture_transfer.as_ref().map(|t| t.gain),
             "gap_metric": result.gap_metric,
             "gap_before": result.gap_before,
             "gap_after": result.gap_after,
@@ -124,6 +125,14 @@ pub fn run(
                 t.cell_m,
                 t.own_blur_m * 1e3
             );
+        }
+        if let Some(t) = &result.texture_transfer {
+            say!(
+                "  texture transfer: the camera sees the texture at gain {:.3} ± {:.3} (the entry's, not an exposure)",
+                t.gain,
+                t.std_err
+            );
+            say!("  {:<12} evidence: {}", "", t.evidence);
         }
         if let (Some(tb), Some(ta)) = (b.texture_band_log_ratio, a.texture_band_log_ratio) {
             say!("  texture band power vs the real albedo (log10): {tb:.3} -> {ta:.3}");

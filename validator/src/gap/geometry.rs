@@ -626,12 +626,8 @@ struct Warp {
 impl Warp {
     fn new(views: &[ViewImages], p: &[f64; 8]) -> Warp {
         let (dist, bias) = effects_of(p);
-        let bias = SensorModel {
-            effects: vec![bias],
-        };
-        let dmodel = SensorModel {
-            effects: vec![dist],
-        };
+        let bias = SensorModel::from(vec![bias]);
+        let dmodel = SensorModel::from(vec![dist]);
         Warp {
             moved: views
                 .iter()
@@ -988,9 +984,7 @@ mod tests {
         calibrated.distortion.k2 = lens[1];
         let mut real_cam = calibrated.clone();
         real_cam.distortion.k1 += dk1;
-        let bias = SensorModel {
-            effects: vec![effects_of(bias).1],
-        };
+        let bias = SensorModel::from(vec![effects_of(bias).1]);
         let texture = |x: f64, y: f64| {
             (x * 23.0).sin() + (y * 31.0 + 0.4).sin() + 0.7 * ((x + y) * 41.0).cos()
         };
@@ -1124,9 +1118,7 @@ mod tests {
         // On a plane a pitch and a vertical offset (a yaw and a sideways one) look alike; the
         // displacement they make together at the plane is determined.
         let at_plane = |p: &[f64; 8]| {
-            let m = SensorModel {
-                effects: vec![effects_of(p).1],
-            };
+            let m = SensorModel::from(vec![effects_of(p).1]);
             m.pose(&Placement::lone(Pose::IDENTITY))
                 .transform_point([0.0, 0.0, 2.0])
         };

@@ -500,16 +500,12 @@ mod tests {
             gain: 0.3,
             read_sigma: 2.0,
         };
-        let linear = SensorModel {
-            effects: vec![noise],
-        };
+        let linear = SensorModel::from(vec![noise]);
         assert!((model_noise_variance(&linear, 100.0) - 34.0).abs() < 1e-12);
         assert!((model_noise_variance(&linear, -5.0) - 4.0).abs() < 1e-12);
         // Under a curve of 2.2, output level 100 is linear signal 255 (100/255)^2.2 = 32.52,
         // whose variance 0.3 · 32.04 + 4 the curve's slope (100/255)^(-1.2) / 2.2 scales.
-        let curved = SensorModel {
-            effects: vec![Effect::Gamma { gamma: 2.2 }, noise],
-        };
+        let curved = SensorModel::from(vec![Effect::Gamma { gamma: 2.2 }, noise]);
         let t: f64 = 100.0 / 255.0;
         let slope = t.powf(-1.2) / 2.2;
         let expected = slope * slope * (0.3 * 255.0 * t.powf(2.2) + 4.0);

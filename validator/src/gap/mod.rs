@@ -180,6 +180,24 @@ fn param_map(e: &Effect) -> BTreeMap<String, f64> {
         .collect()
 }
 
+/// The entry's texture transfer ([`crate::sensor::TextureTransfer`]) the photometric stage
+/// measured: the level at which the camera sees the texture. A texture from another instrument
+/// (laser reflectance, an SfM model's colours) has no known level in the camera's terms, and
+/// over one entry a constant exposure's gain is the same number, so that gain is the entry's,
+/// not the camera's: `exposure` is named only for an offset the transfer cannot take.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TransferFit {
+    /// Camera albedo per texture albedo (times a stored transfer's gain).
+    pub gain: f64,
+    /// Its standard error (as a named effect's, [`Named::std_err`]).
+    pub std_err: f64,
+    /// What showed it.
+    pub evidence: String,
+    /// The gain fitted on each capture location's views alone: an entry property comes out the
+    /// same at every capture, within the entry's own error there.
+    pub per_capture: Vec<CaptureParams>,
+}
+
 /// An effect the workflow could not measure or would not name on this data, and why (the
 /// evidence it lacked or that spoke against it).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -232,6 +250,9 @@ pub struct GapResult {
     pub candidates: BTreeMap<String, Vec<ScoredCandidate>>,
     /// The texture's effective blur against the real images (heightfield entries).
     pub texture: Option<TextureFigures>,
+    /// The texture's transfer, when the photometric stage chose a level change (it is then in
+    /// `model_after`).
+    pub texture_transfer: Option<TransferFit>,
     /// The response curve, black level and noise the repeat frames show over the dark
     /// background ([`response`]); `None` without two frames per pose or a dark background that
     /// shows its noise.
@@ -434,6 +455,7 @@ fn run_steps(
     );
     steps.step();
     let mut withheld = Vec::new();
+    let mut texture_transfer = None;
     withheld.extend(blur_stage(&ctx, &mut model, opts.min_share, &mut found));
     steps.step();
     candidates.insert(
@@ -445,6 +467,7 @@ fn run_steps(
             &witness,
             &mut found,
             &mut withheld,
+            &mut texture_transfer,
         ),
     );
     steps.step();
@@ -511,6 +534,7 @@ fn run_steps(
         model_after: model,
         candidates,
         texture,
+        texture_transfer,
         response: witness.fit,
     })
 }

@@ -95,12 +95,10 @@ mod tests {
         let radiance: Vec<f32> = (0..w * h)
             .map(|i| (i % w) as f32 / w as f32 * 0.95)
             .collect();
-        let model = SensorModel {
-            effects: vec![Effect::Noise {
-                gain: 0.3,
-                read_sigma: 2.0,
-            }],
-        };
+        let model = SensorModel::from(vec![Effect::Noise {
+            gain: 0.3,
+            read_sigma: 2.0,
+        }]);
         let cam = regolith_format::camera_model::CameraModel::pinhole(
             256, 256, 200.0, 200.0, 127.5, 127.5,
         );

@@ -381,7 +381,7 @@ mod tests {
             })
             .collect();
         let cam = CameraModel::pinhole(w as u32, h as u32, 500.0, 500.0, 319.5, 239.5);
-        let model = SensorModel { effects };
+        let model = SensorModel::from(effects);
         let frame = |s: u64| -> Vec<f32> {
             quantise_u8(&model.image(&radiance, w, h, &cam, s))
                 .into_iter()

@@ -199,6 +199,27 @@ pub fn write_gap_report(dir: &Path, r: &GapResult) -> Result<PathBuf, ReportErro
             .collect();
         page.table(&["effect", "stage", "reason"], &rows);
     }
+    if let Some(t) = &r.texture_transfer {
+        page.heading(2, "Texture transfer", None);
+        let per_capture: Vec<String> = t
+            .per_capture
+            .iter()
+            .map(|c| {
+                format!(
+                    "{} {:.3}",
+                    c.capture,
+                    c.params.get("gain").copied().unwrap_or(f64::NAN)
+                )
+            })
+            .collect();
+        page.paragraph(&format!(
+            "The camera sees the entry's texture at {:.3} ± {:.3} times its values (per capture: {}). The texture was measured by another instrument, whose level in the camera's terms is unknown, so this gain is a property of the entry, not an exposure of the camera; the model after holds it and validation renders use it. Evidence: {}",
+            t.gain,
+            t.std_err,
+            per_capture.join(", "),
+            t.evidence
+        ));
+    }
     if let Some(t) = &r.texture {
         page.heading(2, "Texture detail", None);
         page.paragraph(&format!(

@@ -8,7 +8,7 @@
 //! |---|---|---|
 //! | geometry | `distortion`, `pose-bias` | [`SensorModel::camera`], [`SensorModel::pose`] |
 //! | render | `shadows` | [`SensorModel::render_options`] |
-//! | texture | `texture-lowpass` | [`SensorModel::detailed`] (the corpus: [`SensorModel::albedo`]) |
+//! | texture | `texture-lowpass`; the entry's [`TextureTransfer`] | [`SensorModel::detailed`] (the corpus: [`SensorModel::albedo`]); the render's radiance |
 //! | image | `vignetting`, `blur`, `exposure`, `noise`, `gamma` | [`SensorModel::image`] |
 //!
 //! The image effects run in the physical order of a camera, whatever their order in the list:
@@ -30,7 +30,7 @@ use crate::render::{AlbedoGrid, Geometry, Light, RenderOptions, Sampling};
 pub use blur::{gaussian_blur, kernel_radius};
 pub use image::quantise_u8;
 pub use regolith_format::effects::{
-    distortion_shift, level_change_dn, Effect, ParamRange, MIN_DISTORTION_SHIFT,
+    distortion_shift, level_change_dn, Effect, ParamRange, TextureTransfer, MIN_DISTORTION_SHIFT,
     MIN_LEVEL_CHANGE_DN,
 };
 
@@ -59,11 +59,26 @@ impl Placement {
     }
 }
 
-/// A list of effects; empty = the plain model.
+/// A list of effects; empty = the plain model. Beside the camera's effects it may hold the
+/// entry's [`TextureTransfer`], which scales the render's radiance (albedo) before any image
+/// effect.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct SensorModel {
     /// The effects.
     pub effects: Vec<Effect>,
+    /// The texture's transfer to the camera's albedo; `None`: the texture is taken as it is.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture_transfer: Option<TextureTransfer>,
+}
+
+impl From<Vec<Effect>> for SensorModel {
+    /// The camera effects `effects`, the texture taken as it is.
+    fn from(effects: Vec<Effect>) -> SensorModel {
+        SensorModel {
+            effects,
+            texture_transfer: None,
+        }
+    }
 }
 
 impl SensorModel {
@@ -304,11 +319,16 @@ impl SensorModel {
     /// `noise_seed`).
     fn finish(
         &self,
-        rendered: crate::render::Rendered,
+        mut rendered: crate::render::Rendered,
         camera: CameraModel,
         calibrated: &CameraModel,
         noise_seed: Option<u64>,
     ) -> SensorRender {
+        if let Some(t) = self.texture_transfer {
+            // Radiance is linear in the albedo, so scaling it scales the texture.
+            let gain = t.gain as f32;
+            rendered.radiance.iter_mut().for_each(|r| *r *= gain);
+        }
         let effects = match noise_seed {
             Some(_) => self.clone(),
             None => SensorModel {
@@ -318,6 +338,7 @@ impl SensorModel {
                     .filter(|e| !matches!(e, Effect::Noise { .. }))
                     .copied()
                     .collect(),
+                texture_transfer: None,
             },
         };
         let dn = effects.image(

@@ -222,9 +222,7 @@ pub(crate) fn marker_observations(
 ) -> Vec<geometry::Observation> {
     use rayon::prelude::*;
     let seen = with_geometry(model, &["distortion", "pose-bias"], at);
-    let lens = SensorModel {
-        effects: vec![geometry::effects_of(at).0],
-    };
+    let lens = SensorModel::from(vec![geometry::effects_of(at).0]);
     ctx.views
         .par_iter()
         .enumerate()

@@ -10,8 +10,10 @@ use crate::gap::context::{
 };
 use crate::gap::select::{choose_with, subsets, Candidate};
 use crate::gap::views::Prediction;
-use crate::gap::{overlap, photometry, response, CaptureParams, Named, ScoredCandidate, Withheld};
-use crate::sensor::{Effect, SensorModel};
+use crate::gap::{
+    overlap, photometry, response, CaptureParams, Named, ScoredCandidate, TransferFit, Withheld,
+};
+use crate::sensor::{Effect, SensorModel, TextureTransfer};
 
 /// Smallest held-out MSE reduction (DN², on the low-passed images of [`photometry`]) for which
 /// a photometric effect is named: a 5 DN RMS change of the image. Renders of a laser DEM are
@@ -153,14 +155,17 @@ pub(crate) fn overlap_witness(
 }
 
 /// Stage 2: photometry (+ shadows). Updates `model`; an effect chosen but not named for a
-/// reason the data gave goes to `withheld`.
+/// reason the data gave goes to `withheld`. A chosen exposure's gain is the texture's
+/// transfer ([`TransferFit`], into `texture_transfer` and the model): the exposure is named
+/// only for its offset, when that is significant.
 pub(crate) fn photometry_stage(
     ctx: &Ctx<'_>,
     model: &mut SensorModel,
     min_share: f64,
-    transfer: &NoiseWitness,
+    noise: &NoiseWitness,
     out: &mut Vec<Named>,
     withheld: &mut Vec<Withheld>,
+    texture_transfer: &mut Option<TransferFit>,
 ) -> Vec<ScoredCandidate> {
     let psf = model
         .effects
@@ -185,7 +190,7 @@ pub(crate) fn photometry_stage(
     let pairs = overlap::pairs(&ctx.views, &preds, &analyses, &ctx.folds, &poses);
     // The response curve the noise shows ([`response`]) decides the curve when it can: then
     // `gamma` is no candidate of the render-side choice, which is made with the curve fixed.
-    let noise_curve = transfer.fit.clone();
+    let noise_curve = noise.fit.clone();
     let shows = noise_curve
         .as_ref()
         .and_then(|w| w.shows_curve(MIN_CURVE, SIGNIFICANCE));
@@ -303,7 +308,7 @@ pub(crate) fn photometry_stage(
                 .enumerate()
                 .filter(|_| ctx.n_folds >= 2)
                 .filter_map(|(k, c)| {
-                    let g = response_witness(ctx, &transfer.backgrounds, Some(k))?.gamma;
+                    let g = response_witness(ctx, &noise.backgrounds, Some(k))?.gamma;
                     Some(CaptureParams::new(c, &Effect::Gamma { gamma: g }))
                 })
                 .collect();
@@ -424,13 +429,69 @@ pub(crate) fn photometry_stage(
         }
     }
     let significant = |name: &str| significant(name) && pinned(name).is_none();
+    // A chosen exposure's gain goes to the texture's transfer; the camera keeps its offset,
+    // named only when it is significant on its own.
+    let level = chosen.contains(&"exposure") && significant("exposure");
+    let offset_named = level
+        && (p[1] - photometry::NEUTRAL[1]).abs() > SIGNIFICANCE * std_err[1].max(f64::EPSILON);
+    let camera_side = |name: &str, e: Effect| -> Option<Effect> {
+        match e {
+            Effect::Exposure { offset, .. } if level && name == "exposure" => {
+                offset_named.then_some(Effect::Exposure { gain: 1.0, offset })
+            }
+            e => Some(e),
+        }
+    };
     for name in chosen.iter().filter(|n| significant(n)).chain(&present) {
-        if let Some((e, _)) = built(name) {
+        if let Some(e) = built(name).and_then(|(e, _)| camera_side(name, e)) {
             upsert(model, e);
         }
     }
-    for (name, share) in choice.explained.iter().filter(|(n, _)| significant(n)) {
-        if let Some((e, errs)) = built(name) {
+    if level {
+        let stored = model.texture_transfer.map_or(1.0, |t| t.gain);
+        model.texture_transfer = Some(TextureTransfer {
+            gain: stored * p[0],
+        });
+        *texture_transfer = Some(TransferFit {
+            gain: stored * p[0],
+            std_err: stored * std_err[0],
+            evidence: format!(
+                "held-out photometric MSE {:.1} DN² with no effect, {:.1} DN² with the chosen \
+                 set, whose level change has gain {:.3} ± {:.3} and offset {:.1} ± {:.1} DN; \
+                 the texture's level in the camera's terms is unknown, so the gain is the \
+                 entry's{}",
+                base_err,
+                allowed[choice.index].cv_error,
+                p[0],
+                std_err[0],
+                255.0 * p[1],
+                255.0 * std_err[1],
+                if offset_named {
+                    " and the offset the camera's exposure"
+                } else {
+                    ", and the offset is within its error of none"
+                }
+            ),
+            per_capture: fold_names
+                .iter()
+                .zip(&per_fold)
+                .map(|(c, q)| CaptureParams {
+                    capture: c.clone(),
+                    params: BTreeMap::from([("gain".to_string(), stored * q[0])]),
+                })
+                .collect(),
+        });
+    }
+    let named_here =
+        |name: &str| significant(name) && (name != "exposure" || !level || offset_named);
+    for (name, share) in choice.explained.iter().filter(|(n, _)| named_here(n)) {
+        if let Some((e, mut errs)) = built(name) {
+            let Some(e) = camera_side(name, e) else {
+                continue;
+            };
+            if level && *name == "exposure" {
+                errs.insert("gain".to_string(), 0.0);
+            }
             let mut n = named(
                 &e,
                 errs,
@@ -460,7 +521,10 @@ pub(crate) fn photometry_stage(
             n.per_capture = fold_names
                 .iter()
                 .zip(&per_fold)
-                .filter_map(|(c, q)| Some(CaptureParams::new(c, &effect_at(name, q)?.0)))
+                .filter_map(|(c, q)| {
+                    let e = camera_side(name, effect_at(name, q)?.0)?;
+                    Some(CaptureParams::new(c, &e))
+                })
                 .collect();
             out.push(n);
         }
