@@ -894,17 +894,7 @@ pub fn fit_runs(
         let step: Vec<f64> = (0..q.len()).map(|c| forward_step(&pb, q, c)).collect();
         jacobian_of_runs(runs, views, &expand(q), &idx, &step, out);
     };
-    let t0 = std::time::Instant::now();
     let s = solve_with_jacobian(&pb, &jac, MAX_ITER, MIN_GAIN);
-    if std::env::var_os("REGOLITH_TRACE_FIT").is_some() {
-        eprintln!(
-            "TRACEFIT n={} k={} iter={} {:.2}s",
-            s.n,
-            idx.len(),
-            s.iterations,
-            t0.elapsed().as_secs_f64()
-        );
-    }
     let mut std_err = [0.0; 8];
     for (&i, e) in idx.iter().zip(&s.std_err) {
         std_err[i] = *e;

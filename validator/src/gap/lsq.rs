@@ -238,9 +238,6 @@ fn solve_inner(
                     (trial, ct) = (further, cf);
                     scale *= 2.0;
                 }
-                if given.is_some() && std::env::var_os("REGOLITH_TRACE_LM").is_some() {
-                    eprintln!("LM k={k} n={} it={iterations} cost={ct:.6} gain={gain:.3e} lambda={lambda:.1e} p={:?}", r.len(), trial.iter().map(|v| format!("{v:.5}")).collect::<Vec<_>>());
-                }
                 p = trial;
                 std::mem::swap(&mut r, &mut rt);
                 cost = ct;
