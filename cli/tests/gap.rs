@@ -304,10 +304,21 @@ fn a_hidden_gain_is_the_texture_transfer_and_is_applied() {
             "exposure.offset=0.0",
         ],
     );
-    let v = regolith(&["gap", &db, "--entry", "laser/0.01", "--apply"]);
+    let report = dir.path().join("report");
+    let v = regolith(&[
+        "gap",
+        &db,
+        "--entry",
+        "laser/0.01",
+        "--apply",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
     common::assert_matches_doc_schema("gap", &v);
     let gain = v["texture_transfer"]["gain"].as_f64().unwrap();
     assert!((gain - 1.25).abs() < 0.125, "transfer gain {gain}");
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert!(html.contains("Texture transfer"), "no transfer section");
     // An exposure, if named, is the camera's offset alone.
     if let Some(n) = v["named"]
         .as_array()
