@@ -331,15 +331,13 @@ impl SensorModel {
         }
         let effects = match noise_seed {
             Some(_) => self.clone(),
-            None => SensorModel {
-                effects: self
-                    .effects
+            None => SensorModel::from(
+                self.effects
                     .iter()
                     .filter(|e| !matches!(e, Effect::Noise { .. }))
                     .copied()
-                    .collect(),
-                texture_transfer: None,
-            },
+                    .collect::<Vec<_>>(),
+            ),
         };
         let dn = effects.image(
             &rendered.radiance,

@@ -482,10 +482,9 @@ pub(crate) fn photometry_stage(
                 .collect(),
         });
     }
-    let named_here =
-        |name: &str| significant(name) && (name != "exposure" || !level || offset_named);
-    for (name, share) in choice.explained.iter().filter(|(n, _)| named_here(n)) {
+    for (name, share) in choice.explained.iter().filter(|(n, _)| significant(n)) {
         if let Some((e, mut errs)) = built(name) {
+            // An exposure whose gain went to the transfer and whose offset is none: not named.
             let Some(e) = camera_side(name, e) else {
                 continue;
             };
