@@ -317,6 +317,13 @@ fn a_hidden_gain_is_the_texture_transfer_and_is_applied() {
     common::assert_matches_doc_schema("gap", &v);
     let gain = v["texture_transfer"]["gain"].as_f64().unwrap();
     assert!((gain - 1.25).abs() < 0.125, "transfer gain {gain}");
+    // One gain for every frame: the two captures' fits agree within their errors.
+    let evidence = v["texture_transfer"]["evidence"].as_str().unwrap();
+    let p: f64 = evidence
+        .rsplit_once("p = ")
+        .and_then(|(_, p)| p.trim_end_matches(')').parse().ok())
+        .unwrap_or_else(|| panic!("no per-capture agreement in {evidence:?}"));
+    assert!(p > 0.01, "the captures disagree: {evidence}");
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert!(html.contains("Texture transfer"), "no transfer section");
     // An exposure, if named, is the camera's offset alone.

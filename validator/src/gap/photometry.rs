@@ -93,6 +93,9 @@ pub struct Samples {
     pub radiance: Vec<f64>,
     /// Squared distance from the principal point over the squared farthest-corner distance.
     pub rho2: Vec<f64>,
+    /// Spatial block of each sample: its view's image cut into [`BLOCKS`] × [`BLOCKS`], numbered
+    /// over the views (see [`Samples::blocks_of`]).
+    pub block: Vec<u32>,
     /// Low-passed real DN where the render has no terrain (see [`Samples::black_limit`]).
     pub background: Vec<f64>,
     /// A response curve measured apart from the render ([`super::response`]): fits whose
@@ -158,9 +161,43 @@ impl Samples {
         Some(*q + BLACK_MARGIN_DN)
     }
 
-    /// Appends the samples of one view (`a` its [`Analysis`]), its radiance blurred by a
-    /// Gaussian PSF of `sigma_px`.
-    pub fn add(&mut self, fold: usize, v: &GapView, p: &Prediction, a: &Analysis, sigma_px: f64) {
+    /// The blocks of fold `fold`'s samples, in increasing order.
+    pub fn blocks_of(&self, fold: usize) -> Vec<u32> {
+        let mut out: Vec<u32> = (0..self.len())
+            .filter(|&i| self.fold[i] == fold)
+            .map(|i| self.block[i])
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    /// The samples `keep` keeps (by index), with the same measured curve and black level.
+    pub fn subset(&self, keep: &dyn Fn(usize) -> bool) -> Samples {
+        let idx: Vec<usize> = (0..self.len()).filter(|&i| keep(i)).collect();
+        let pick = |v: &[f64]| idx.iter().map(|&i| v[i]).collect();
+        Samples {
+            fold: idx.iter().map(|&i| self.fold[i]).collect(),
+            real: pick(&self.real),
+            radiance: pick(&self.radiance),
+            rho2: pick(&self.rho2),
+            block: idx.iter().map(|&i| self.block[i]).collect(),
+            background: self.background.clone(),
+            curve: self.curve,
+            black: self.black,
+        }
+    }
+
+    /// Appends the samples of view number `view` (`a` its [`Analysis`]), its radiance blurred
+    /// by a Gaussian PSF of `sigma_px`.
+    pub fn add(
+        &mut self,
+        (view, fold): (usize, usize),
+        v: &GapView,
+        p: &Prediction,
+        a: &Analysis,
+        sigma_px: f64,
+    ) {
         let (w, h) = (v.width, v.height);
         let blurred = gaussian_blur(
             &p.radiance,
@@ -185,10 +222,18 @@ impl Samples {
                 self.radiance.push(f64::from(blurred[i]));
                 self.rho2
                     .push(((x as f64 - cam.cx).powi(2) + (y as f64 - cam.cy).powi(2)) / corner2);
+                let (bx, by) = (x * BLOCKS / w, y * BLOCKS / h);
+                self.block
+                    .push((view * BLOCKS * BLOCKS + by * BLOCKS + bx) as u32);
             }
         }
     }
 }
+
+/// Blocks per image axis of [`Samples::block`]: a capture's two views give 18 blocks, enough
+/// for a jackknife over them, and a block (a third of the image) spans dozens of the analysis
+/// low-pass's widths, so neighbouring blocks' residuals are nearly independent.
+pub const BLOCKS: usize = 3;
 
 /// Fewest background samples for which they bound the black level.
 pub const MIN_BACKGROUND: usize = 200;
@@ -553,6 +598,7 @@ mod tests {
                 s.radiance
                     .push(rad * (1.0 + 0.03 * (k as f64 * 2.71).sin()));
                 s.rho2.push(0.5);
+                s.block.push(0);
             }
             // The sky reads the noise floor.
             s.background = (0..MIN_BACKGROUND).map(|k| 0.5 + 0.01 * k as f64).collect();
@@ -595,6 +641,7 @@ mod tests {
             let texture = 0.2 * (k as f64 * 2.71).sin();
             s.radiance.push(rad * (1.0 + 0.15 * rho2) * (1.0 + texture));
             s.rho2.push(rho2);
+            s.block.push(0);
             let other = ((k * 7) % 100) as f64 / 100.0;
             pairs.push(Pair {
                 fold: k % 2,

@@ -5,6 +5,7 @@
 
 use std::collections::BTreeMap;
 
+use crate::gap::consistency;
 use crate::gap::context::{
     cross_validate, has, honest_std_err, jackknife, named, scored, upsert, Ctx, SIGNIFICANCE,
 };
@@ -183,8 +184,15 @@ pub(crate) fn photometry_stage(
         .map(|(v, p)| photometry::Analysis::new(v, p))
         .collect();
     let mut plain = photometry::Samples::default();
-    for (((v, p), a), f) in ctx.views.iter().zip(&preds).zip(&analyses).zip(&ctx.folds) {
-        plain.add(*f, v, p, a, psf);
+    for (k, (((v, p), a), f)) in ctx
+        .views
+        .iter()
+        .zip(&preds)
+        .zip(&analyses)
+        .zip(&ctx.folds)
+        .enumerate()
+    {
+        plain.add((k, *f), v, p, a, psf);
     }
     let poses: Vec<_> = ctx.views.iter().map(|v| model.pose(&v.at)).collect();
     let pairs = overlap::pairs(&ctx.views, &preds, &analyses, &ctx.folds, &poses);
@@ -245,10 +253,13 @@ pub(crate) fn photometry_stage(
     // Without an exposure the DN fit is kept: there the attenuation has no free gain to go to,
     // and on radiance a hidden vignetting of 0.2 under a gamma of 1.6 came out 0.12.
     // A vignetting's strength also rests on the overlap of the views (see `overlap`).
-    let fit_final = |set: &[&str], use_fold: &(dyn Fn(usize) -> bool + Sync)| {
-        let by_radiance = set.contains(&"exposure");
-        photometry::refit_with_overlap(&plain, &pairs, set, use_fold, by_radiance)
-    };
+    let fit_on =
+        |s: &photometry::Samples, set: &[&str], use_fold: &(dyn Fn(usize) -> bool + Sync)| {
+            let by_radiance = set.contains(&"exposure");
+            photometry::refit_with_overlap(s, &pairs, set, use_fold, by_radiance)
+        };
+    let fit_final =
+        |set: &[&str], use_fold: &(dyn Fn(usize) -> bool + Sync)| fit_on(&plain, set, use_fold);
     let black_limit = plain.black_limit();
     // A chosen exposure whose fitted black level the background does not allow is a response
     // curve (or another effect) in disguise: the sets with an exposure are then out.
@@ -367,12 +378,48 @@ pub(crate) fn photometry_stage(
         ))
     };
     let fold_names = ctx.fold_names();
-    let per_fold: Vec<[f64; 4]> = if ctx.n_folds >= 2 {
+    let fold_fits: Vec<photometry::PhotometricFit> = if ctx.n_folds >= 2 {
         (0..ctx.n_folds)
-            .map(|k| fit_final(&fit_set, &|fold| fold == k).params)
+            .map(|k| fit_final(&fit_set, &|fold| fold == k))
             .collect()
     } else {
         Vec::new()
+    };
+    let per_fold: Vec<[f64; 4]> = fold_fits.iter().map(|f| f.params).collect();
+    // Each capture's fit's standard errors: the larger of the least-squares one and the
+    // jackknife over the capture's image blocks ([`photometry::BLOCKS`]), which sees how the
+    // entry's errors vary over the terrain that capture shows.
+    let per_fold_err: Vec<[f64; 4]> = fold_fits
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let blocks = plain.blocks_of(k);
+            let jack = jackknife(blocks.len(), &|b| {
+                let sub = plain.subset(&|i| plain.fold[i] == k && plain.block[i] != blocks[b]);
+                fit_on(&sub, &fit_set, &|fold| fold == k).params.to_vec()
+            });
+            honest_std_err(f.std_err, jack)
+        })
+        .collect();
+    // The agreement of the captures' fits of parameter `i` (see [`consistency`]), as evidence.
+    let agreement = |i: usize, scale: f64| -> String {
+        let values: Vec<f64> = per_fold.iter().map(|q| q[i]).collect();
+        let errs: Vec<f64> = per_fold_err.iter().map(|e| e[i]).collect();
+        consistency::across(&values, &errs).map_or(String::new(), |c| {
+            format!(
+                "; its {} per capture {} (χ² {:.1} on {} degrees of freedom, p = {:.2})",
+                photometry::PARAMS[i],
+                values
+                    .iter()
+                    .zip(&errs)
+                    .map(|(v, e)| format!("{:.3} ± {:.3}", scale * v, scale * e))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                c.chi2,
+                c.dof,
+                c.p
+            )
+        })
     };
     // A chosen effect whose every parameter is within SIGNIFICANCE standard errors of its
     // neutral value is not named: its held-out gain came from a level difference the final
@@ -471,7 +518,7 @@ pub(crate) fn photometry_stage(
                 } else {
                     ", and the offset is within its error of none"
                 }
-            ),
+            ) + &agreement(0, stored),
             per_capture: fold_names
                 .iter()
                 .zip(&per_fold)
@@ -515,7 +562,12 @@ pub(crate) fn photometry_stage(
                         ),
                         _ => String::new(),
                     }
-                ),
+                ) + &effect_at(name, &p).map_or(String::new(), |(_, idx)| {
+                    idx.iter()
+                        .filter(|&&i| !(level && i == 0))
+                        .map(|&i| agreement(i, if i == 1 { 255.0 } else { 1.0 }))
+                        .collect::<String>()
+                }),
             );
             n.per_capture = fold_names
                 .iter()
@@ -551,6 +603,7 @@ mod tests {
             s.real.push(dn(rad, rho2) * (1.0 + noise));
             s.radiance.push(rad * (1.0 + 0.2 * (k as f64 * 2.71).sin()));
             s.rho2.push(rho2);
+            s.block.push(0);
             pairs.push(overlap::Pair {
                 fold: k % 2,
                 real: [dn(rad, rho2) * (1.0 + noise), dn(rad, other)],
