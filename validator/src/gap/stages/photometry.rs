@@ -105,6 +105,26 @@ pub(crate) fn response_witness<B: AsRef<[bool]>>(
     response::measure(&views, if only.is_some() { 1 } else { ctx.n_folds })
 }
 
+/// The closing words of an effect's evidence on its captures' agreement ([`consistency`]):
+/// parameter `param`'s per-capture `values` with their `errs` (shown times `scale`), their
+/// χ², degrees of freedom and p-value; empty without two captures with errors.
+fn agreement(param: &str, values: &[f64], errs: &[f64], scale: f64) -> String {
+    consistency::across(values, errs).map_or(String::new(), |c| {
+        format!(
+            "; its {param} per capture {} (χ² {:.1} on {} degrees of freedom, p = {:.2})",
+            values
+                .iter()
+                .zip(errs)
+                .map(|(v, e)| format!("{:.3} ± {:.3}", scale * v, scale * e))
+                .collect::<Vec<_>>()
+                .join(", "),
+            c.chi2,
+            c.dof,
+            c.p
+        )
+    })
+}
+
 /// Frees the exposure gain in a final fit of `set` unless an exposure or a response curve is
 /// in it. The gain is a nuisance of every final fit: the entry's albedo and shading are never
 /// exactly at the camera's level, and an effect fitted without a free gain absorbs that level
@@ -295,6 +315,15 @@ pub(crate) fn photometry_stage(
                 .iter()
                 .find(|c| c.effects.is_empty())
                 .map_or(without, |c| c.cv_error);
+            let per: Vec<(String, response::ResponseFit)> = ctx
+                .fold_names()
+                .into_iter()
+                .enumerate()
+                .filter(|_| ctx.n_folds >= 2)
+                .filter_map(|(k, c)| Some((c, response_witness(ctx, &noise.backgrounds, Some(k))?)))
+                .collect();
+            let gammas: Vec<f64> = per.iter().map(|(_, r)| r.gamma).collect();
+            let errs: Vec<f64> = per.iter().map(|(_, r)| r.gamma_se).collect();
             let mut n = named(
                 &e,
                 BTreeMap::from([("gamma".to_string(), w.gamma_se)]),
@@ -311,17 +340,11 @@ pub(crate) fn photometry_stage(
                     w.black_dn,
                     without,
                     with
-                ),
+                ) + &agreement("gamma", &gammas, &errs, 1.0),
             );
-            n.per_capture = ctx
-                .fold_names()
+            n.per_capture = per
                 .iter()
-                .enumerate()
-                .filter(|_| ctx.n_folds >= 2)
-                .filter_map(|(k, c)| {
-                    let g = response_witness(ctx, &noise.backgrounds, Some(k))?.gamma;
-                    Some(CaptureParams::new(c, &Effect::Gamma { gamma: g }))
-                })
+                .map(|(c, r)| CaptureParams::new(c, &Effect::Gamma { gamma: r.gamma }))
                 .collect();
             out.push(n);
         }
@@ -401,25 +424,15 @@ pub(crate) fn photometry_stage(
             honest_std_err(f.std_err, jack)
         })
         .collect();
-    // The agreement of the captures' fits of parameter `i` (see [`consistency`]), as evidence.
-    let agreement = |i: usize, scale: f64| -> String {
+    // The agreement of the captures' fits of free parameter `i`, as evidence.
+    let free = plain.free(&fit_set);
+    let captures_agree = |i: usize, scale: f64| -> String {
+        if !free.contains(&i) {
+            return String::new();
+        }
         let values: Vec<f64> = per_fold.iter().map(|q| q[i]).collect();
         let errs: Vec<f64> = per_fold_err.iter().map(|e| e[i]).collect();
-        consistency::across(&values, &errs).map_or(String::new(), |c| {
-            format!(
-                "; its {} per capture {} (χ² {:.1} on {} degrees of freedom, p = {:.2})",
-                photometry::PARAMS[i],
-                values
-                    .iter()
-                    .zip(&errs)
-                    .map(|(v, e)| format!("{:.3} ± {:.3}", scale * v, scale * e))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                c.chi2,
-                c.dof,
-                c.p
-            )
-        })
+        agreement(photometry::PARAMS[i], &values, &errs, scale)
     };
     // A chosen effect whose every parameter is within SIGNIFICANCE standard errors of its
     // neutral value is not named: its held-out gain came from a level difference the final
@@ -518,7 +531,7 @@ pub(crate) fn photometry_stage(
                 } else {
                     ", and the offset is within its error of none"
                 }
-            ) + &agreement(0, stored),
+            ) + &captures_agree(0, stored),
             per_capture: fold_names
                 .iter()
                 .zip(&per_fold)
@@ -565,7 +578,7 @@ pub(crate) fn photometry_stage(
                 ) + &effect_at(name, &p).map_or(String::new(), |(_, idx)| {
                     idx.iter()
                         .filter(|&&i| !(level && i == 0))
-                        .map(|&i| agreement(i, if i == 1 { 255.0 } else { 1.0 }))
+                        .map(|&i| captures_agree(i, if i == 1 { 255.0 } else { 1.0 }))
                         .collect::<String>()
                 }),
             );
