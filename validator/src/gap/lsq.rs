@@ -11,8 +11,9 @@
 //! curvature and each Gauss–Newton step covers only a fraction of the way (mini, nothing
 //! hidden: dk1 moved by a geometric series of ratio ≈ 0.8 and the fit stopped at the 200
 //! iteration cap short of its minimum). An accepted step is therefore extrapolated along its
-//! direction (×2, ×4, … ×16) while the cost keeps falling; the same fits converge in 4–11
-//! iterations. The Jacobian's columns are evaluated in parallel.
+//! direction to the minimum of the parabola through the cost and its slope at the start and
+//! the cost at the step (up to ×16; estec's dense alignment: ×1.6–6.2, mostly 2–4), one
+//! residual evaluation more per step. The Jacobian's columns are evaluated in parallel.
 //!
 //! A problem whose residuals are cheap to differentiate by the chain rule (the dense
 //! alignment: an image's gradient times a projection's motion) may pass its own Jacobian
@@ -220,9 +221,19 @@ fn solve_inner(
             if ct.is_finite() && ct < cost {
                 let gain = (cost - ct) / cost.max(1e-300);
                 let (mut trial, mut ct) = (trial, ct);
-                // Extrapolate along the accepted step while that still lowers the cost.
-                let mut scale = 2.0;
-                while scale <= MAX_EXTRAPOLATION {
+                // Extrapolate along the accepted step to the least cost of the parabola that
+                // has the cost and its slope at the start (`2 gᵀδ`, exact from the normal
+                // equations) and the cost at the step: one more evaluation, taken when the
+                // parabola promises more than the fit's own convergence gain.
+                let slope = 2.0 * g.dot(&delta);
+                let curvature = ct - cost - slope;
+                let scale = if curvature > 0.0 {
+                    (-slope / (2.0 * curvature)).min(MAX_EXTRAPOLATION)
+                } else {
+                    MAX_EXTRAPOLATION
+                };
+                let promised = curvature.max(0.0) * (scale - 1.0).powi(2);
+                if scale > 1.0 && promised > min_gain * cost {
                     let mut further: Vec<f64> = p
                         .iter()
                         .zip(delta.iter())
@@ -231,12 +242,10 @@ fn solve_inner(
                     clamp(&mut further, &pb.lower, &pb.upper);
                     (pb.residuals)(&further, &mut rf);
                     let cf = sse(&rf);
-                    if !(cf.is_finite() && cf < ct) {
-                        break;
+                    if cf.is_finite() && cf < ct {
+                        std::mem::swap(&mut rt, &mut rf);
+                        (trial, ct) = (further, cf);
                     }
-                    std::mem::swap(&mut rt, &mut rf);
-                    (trial, ct) = (further, cf);
-                    scale *= 2.0;
                 }
                 p = trial;
                 std::mem::swap(&mut r, &mut rt);
