@@ -748,6 +748,59 @@ fn relit_hits_give_the_bytes_of_a_render() {
     }
 }
 
+/// A render given the view's first hits at one sample a pixel gives the bytes of the render
+/// it stands for — adaptive at two and three samples a side (the centres kept, the edge
+/// pixels traced), at one (a relight) and plain at two (traced) — heightfield and mesh, with
+/// and without cast shadows. The centres do come from the hits: another view's make another
+/// image.
+#[test]
+fn a_render_from_kept_hits_gives_the_bytes_of_a_render() {
+    let hf = Geometry::Heightfield {
+        grid: box_grid(),
+        albedo: albedo(201, 201, 0.02, |x, y| {
+            0.4 + 0.2 * (x * 9.0).sin() * (y * 7.0).cos()
+        }),
+    };
+    let mesh = Geometry::Mesh(as_mesh(&box_grid(), 0.4));
+    let view = View::look_at(real_camera(), [0.3, -3.8, 1.5], [2.0, -2.0, 0.1]);
+    let elsewhere = View::look_at(real_camera(), [4.0, -0.5, 1.2], [2.0, -2.0, 0.1]);
+    let l = light(200.0, 35.0, 0.2);
+    for g in [&hf, &mesh] {
+        let scene = Scene::new(g);
+        let opts = |n, adaptive, shadows| RenderOptions {
+            distort: true,
+            shadows,
+            supersample: n,
+            filter_textures: true,
+            adaptive,
+        };
+        let hits = scene.primary_hits(&view, &opts(1, false, false));
+        let stale = scene.primary_hits(&elsewhere, &opts(1, false, false));
+        for (n, adaptive) in [(2, true), (3, true), (1, true), (2, false)] {
+            for shadows in [false, true] {
+                let o = opts(n, adaptive, shadows);
+                let full = scene.render(&l, &view, &o);
+                let kept = scene.render_from_hits(&hits, &l, &view, &o);
+                let what = format!("n = {n}, adaptive {adaptive}, shadows {shadows}");
+                assert_eq!(bits(&kept), bits(&full), "{what}");
+                assert_eq!(kept.mask, full.mask, "{what}");
+                assert_eq!(kept.depth.len(), full.depth.len());
+                assert!(
+                    kept.depth
+                        .iter()
+                        .zip(&full.depth)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{what}: depth"
+                );
+                if n == 2 && adaptive {
+                    let wrong = scene.render_from_hits(&stale, &l, &view, &o);
+                    assert_ne!(bits(&wrong), bits(&full), "another view's hits must show");
+                }
+            }
+        }
+    }
+}
+
 /// Flat ground 4 m square (albedo 0.5) with a ball of radius 0.2 m (albedo 0.9) standing at its
 /// centre, (2, −2).
 fn ball_on_ground() -> (Geometry, Sphere) {

@@ -436,14 +436,13 @@ fn run_steps(
 ) -> Result<GapResult, ReaderError> {
     let ctx = Ctx::load(view, geometry, opts)?;
     let model_before = stored_model(view, entry)?;
-    let preds_before = ctx.predict_all(&model_before);
     // Where the campaign light casts shadows, seen through the stored geometry: the same
     // pixels before and after, so the two shadow figures compare like with like.
     let flat = match geometry {
         Geometry::Heightfield { albedo, .. } => Some(stages::texture::flat_albedo(albedo)),
         _ => None,
     };
-    let (shadow, flat) = ctx.shadow_pixels_and_flat(&model_before, flat);
+    let (preds_before, shadow, flat) = ctx.predict_with_shadows_and_flat(&model_before, flat);
     let metrics_before = ctx.measure(&preds_before, &model_before, &shadow, flat);
     let witness = NoiseWitness::new(&ctx, &preds_before);
     let mut model = model_before.clone();

@@ -174,6 +174,29 @@ pub fn predict(
     Prediction::from(model.render(scene, light, &v.camera_model, &v.at, sampling, None))
 }
 
+/// [`predict`] given the view's camera rays' first `hits` at one sample a pixel, traced under
+/// a model of the same geometry as `model`: the same prediction, only the edge pixels'
+/// samples traced.
+pub fn predict_from_hits(
+    scene: &Scene<'_>,
+    light: &Light,
+    v: &GapView,
+    model: &SensorModel,
+    supersample: u32,
+    hits: &PrimaryHits,
+) -> Prediction {
+    let sampling = Sampling::Edges(supersample);
+    Prediction::from(model.render_from_hits(
+        scene,
+        hits,
+        light,
+        &v.camera_model,
+        &v.at,
+        sampling,
+        None,
+    ))
+}
+
 /// [`predict`] at supersample 1 from the view's camera rays' first `hits`, traced under a
 /// model of the same geometry as `model` ([`SensorModel::relight`]): the same prediction.
 pub fn predict_relit(

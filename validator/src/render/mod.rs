@@ -375,6 +375,19 @@ impl<'a> Scene<'a> {
         raster::primary_hits(self, view, opts)
     }
 
+    /// [`Scene::render`] of `view` given `hits`, its first hits at one sample a pixel
+    /// ([`Scene::primary_hits`] of the same view and options but the sampling): the same bytes,
+    /// an adaptive render tracing only its edge pixels' samples.
+    pub fn render_from_hits(
+        &self,
+        hits: &PrimaryHits,
+        light: &Light,
+        view: &View,
+        opts: &RenderOptions,
+    ) -> Rendered {
+        raster::render_from_hits(self, hits, light, view, opts)
+    }
+
     /// `hits` (traced in this scene) shaded under `light`, with cast shadows when `shadows`:
     /// the same bytes as [`Scene::render`] of their view.
     pub fn relight(&self, hits: &PrimaryHits, light: &Light, shadows: bool) -> Rendered {

@@ -93,7 +93,16 @@ pub(crate) fn render_scene(
     let rays = CameraRays::new(scene, view, opts);
     let shader = Shader::new(scene, light, opts.shadows);
     if opts.adaptive && rays.n > 1 {
-        return assemble_at_edges(scene, &rays, &shader);
+        let n = rays.n;
+        let centre_k = if n.is_multiple_of(2) {
+            (n * n) as usize
+        } else {
+            ((n / 2) * n + n / 2) as usize
+        };
+        let pixel_spread = rays.spread * f64::from(n);
+        return assemble_at_edges(scene, &rays, &shader, |c, r| {
+            rays.hit_with_spread(scene, c, r, centre_k, pixel_spread)
+        });
     }
     assemble(
         rays.w,
@@ -102,6 +111,35 @@ pub(crate) fn render_scene(
         |c, r, k| rays.first_hit(scene, c, r, k),
         |s, _| shader.shade(s),
     )
+}
+
+/// [`render_scene`] of `view` with `hits`, its camera rays' first hits at one sample a pixel
+/// ([`primary_hits`] of the same view): the same bytes. An adaptive render takes its pixel
+/// centres from them (a centre ray is the one-sample ray, its texture filtered over the same
+/// pixel) and traces only its edge pixels' samples; a render at one sample a pixel is their
+/// relight; any other sampling is traced as [`render_scene`] traces it.
+pub(crate) fn render_from_hits(
+    scene: &Scene<'_>,
+    hits: &PrimaryHits,
+    light: &Light,
+    view: &View,
+    opts: &RenderOptions,
+) -> Rendered {
+    let rays = CameraRays::new(scene, view, opts);
+    let fits = hits.supersample == 1 && hits.width == rays.w && hits.height == rays.h;
+    if !fits {
+        return render_scene(scene, light, view, opts);
+    }
+    if rays.n == 1 {
+        return relight(scene, hits, light, opts.shadows);
+    }
+    if !opts.adaptive {
+        return render_scene(scene, light, view, opts);
+    }
+    let shader = Shader::new(scene, light, opts.shadows);
+    assemble_at_edges(scene, &rays, &shader, |c, r| {
+        hits.hits.get(r * rays.w + c).copied().flatten()
+    })
 }
 
 /// Range ratio to the pixel's angular size past which two neighbouring pixel centres are not
@@ -172,24 +210,21 @@ impl Centre {
 /// separates the centre from a 4-neighbour's, so such an edge is never missed. Depth and mask
 /// come from the centre ray as there. Each pixel is a pure function of its own and its
 /// neighbours' rays.
+///
+/// `centre(c, r)` is pixel `(c, r)`'s centre ray's hit, its texture filtered over the pixel:
+/// traced here, or kept from [`primary_hits`] at one sample a pixel (the same ray and filter).
 fn assemble_at_edges(
     scene: &Scene<'_>,
     rays: &CameraRays<'_>,
     shader: &Shader<'_, '_>,
+    centre: impl Fn(usize, usize) -> Option<SurfaceSample> + Sync,
 ) -> Rendered {
     let (w, h, n) = (rays.w, rays.h, rays.n);
-    let centre_k = if n.is_multiple_of(2) {
-        (n * n) as usize
-    } else {
-        ((n / 2) * n + n / 2) as usize
-    };
-    let pixel_spread = rays.spread * f64::from(n);
     let mut centres = vec![Centre::of(None, shader); w * h];
     if w > 0 {
         centres.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-            for (c, centre) in row.iter_mut().enumerate() {
-                let s = rays.hit_with_spread(scene, c, r, centre_k, pixel_spread);
-                *centre = Centre::of(s.as_ref(), shader);
+            for (c, out) in row.iter_mut().enumerate() {
+                *out = Centre::of(centre(c, r).as_ref(), shader);
             }
         });
     }

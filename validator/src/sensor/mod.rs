@@ -253,6 +253,35 @@ impl SensorModel {
         )
     }
 
+    /// [`SensorModel::render`] given `hits`, this view's [`SensorModel::primary_hits`] at one
+    /// sample a pixel traced with a model of the same distortion and pose bias: the same
+    /// bytes, an adaptive sampling tracing only its edge pixels' samples (see
+    /// [`crate::render::Scene::render_from_hits`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_from_hits(
+        &self,
+        scene: &crate::render::Scene<'_>,
+        hits: &crate::render::PrimaryHits,
+        light: &Light,
+        calibrated: &CameraModel,
+        at: &Placement,
+        sampling: impl Into<Sampling>,
+        noise_seed: Option<u64>,
+    ) -> SensorRender {
+        let camera = self.camera(calibrated);
+        let (opts, light) = self.lighting(light, sampling.into());
+        let rendered = scene.render_from_hits(
+            hits,
+            &light,
+            &crate::render::View {
+                camera: camera.clone(),
+                ground_from_camera: self.pose(at),
+            },
+            &opts,
+        );
+        self.finish(rendered, camera, calibrated, noise_seed)
+    }
+
     /// [`SensorModel::render`] from `hits`, traced by [`SensorModel::primary_hits`] with a model
     /// of the same distortion and pose bias as this one: only the light (a `shadows` effect's
     /// direction) and the image effects may differ. The same bytes as a render.
