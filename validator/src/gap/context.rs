@@ -8,10 +8,11 @@ use rayon::prelude::*;
 use regolith_reader::{ReaderError, ReleaseView};
 
 use super::measure::{self, Metrics};
+use super::one_sample::{OneSample, Shading};
 use super::select::Candidate;
 use super::stages::geometry::geometric_masks;
 use super::stages::texture::TextureInputs;
-use super::views::{load_views, predict, predict_from_hits, predict_relit, GapView, Prediction};
+use super::views::{load_views, predict, predict_from_hits, GapView, Prediction};
 use super::{markers, param_map, shadows, texture, GapOptions, Named, ScoredCandidate};
 use crate::render::{Geometry, Light, Scene};
 use crate::sensor::{Effect, SensorModel};
@@ -121,6 +122,8 @@ pub(crate) struct Ctx<'a> {
     /// The last renders of [`Ctx::predict_all`] and the model they are of: a stage that
     /// changes nothing leaves the next one the model it rendered last.
     last: std::sync::Mutex<Option<(SensorModel, Vec<Prediction>)>>,
+    /// The first step's one-sample renders, for the later stages ([`OneSample`]).
+    one_sample: std::sync::Mutex<Option<OneSample>>,
 }
 
 impl<'a> Ctx<'a> {
@@ -144,6 +147,7 @@ impl<'a> Ctx<'a> {
             supersample: opts.supersample.max(1),
             markers: markers::survey_markers(view)?,
             last: std::sync::Mutex::new(None),
+            one_sample: std::sync::Mutex::new(None),
         })
     }
 
@@ -170,7 +174,8 @@ impl<'a> Ctx<'a> {
     /// [`Ctx::predict_all`] of `model` and [`Ctx::shadow_pixels_and_flat`] together, from one
     /// set of camera rays per view: the renders take their pixel centres from the rays the
     /// other two shade and trace only their edge pixels' samples (the same bytes as
-    /// [`Ctx::predict_all`]; estec, 16 views: the gap's loading step 21.7 → 16.9 s).
+    /// [`Ctx::predict_all`]; estec, 16 views: the gap's loading step 21.7 → 16.9 s). The
+    /// one-sample renders are kept for the later stages ([`Ctx::one_sample`]).
     pub(crate) fn predict_with_shadows_and_flat(
         &self,
         model: &SensorModel,
@@ -185,9 +190,33 @@ impl<'a> Ctx<'a> {
         (preds, pixels, flats)
     }
 
+    /// `model`'s one-sample renders of every view under `shading` from the first step's kept
+    /// ones ([`OneSample`]): `None` when it traces other rays or casts other shadows than
+    /// they were made with, or none were kept.
+    pub(crate) fn one_sample(
+        &self,
+        model: &SensorModel,
+        shading: Shading,
+    ) -> Option<Vec<Prediction>> {
+        self.one_sample
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .as_ref()?
+            .renders(model, shading, &self.views)
+    }
+
+    /// The uniform albedo of the kept flat renders ([`Ctx::one_sample`]), if kept.
+    pub(crate) fn one_sample_flat_albedo(&self) -> Option<f32> {
+        self.one_sample
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .as_ref()?
+            .flat_albedo()
+    }
+
     /// Per view from one set of camera rays: `model`'s render at the context's sampling when
-    /// `renders` (none otherwise), the cast-shadow pixels and the flat renders (see
-    /// [`Ctx::shadow_pixels_and_flat`]).
+    /// `renders` (none otherwise; with them the one-sample renders are kept), the cast-shadow
+    /// pixels and the flat renders (see [`Ctx::shadow_pixels_and_flat`]).
     fn traced(
         &self,
         model: &SensorModel,
@@ -197,10 +226,12 @@ impl<'a> Ctx<'a> {
         let mut lit = model.clone();
         lit.effects.retain(|e| e.name() != "shadows");
         let mut shadowed = lit.clone();
-        shadowed.effects.push(Effect::Shadows {
+        let record = Effect::Shadows {
             azimuth_deg: self.light.azimuth_deg,
             elevation_deg: self.light.elevation_deg,
-        });
+        };
+        shadowed.effects.push(record);
+        let mut kept = renders.then(|| OneSample::new(model, record, flat));
         let (mut preds, mut pixels, mut flats) = (Vec::new(), Vec::new(), Vec::new());
         for v in &self.views {
             let hits = lit.primary_hits(&self.scene, &v.camera_model, &v.at, 1);
@@ -214,20 +245,28 @@ impl<'a> Ctx<'a> {
                     &hits,
                 ));
             }
-            let l = predict_relit(&self.scene, &self.light, v, &lit, &hits);
-            let s = predict_relit(&self.scene, &self.light, v, &shadowed, &hits);
+            let l = lit.relight_radiance(&self.scene, &hits, &self.light);
+            let s = shadowed.relight_radiance(&self.scene, &hits, &self.light);
+            let f = flat.map(|a| {
+                model.relight_radiance(&self.scene, &hits.with_geometry_albedo(a), &self.light)
+            });
+            drop(hits);
+            if let Some(k) = kept.as_mut() {
+                k.push(&l, &s, f.as_ref());
+            }
+            let finish =
+                |m: &SensorModel, r| Prediction::from(m.finish_rendered(r, &v.camera_model, None));
+            let (l, s) = (finish(&lit, l), finish(&shadowed, s));
             pixels.push(shadows::shadow_pixels(
                 &l.dn, &s.dn, &l.mask, v.width, v.height,
             ));
-            flats.push(flat.map(|a| {
-                predict_relit(
-                    &self.scene,
-                    &self.light,
-                    v,
-                    model,
-                    &hits.with_geometry_albedo(a),
-                )
-            }));
+            flats.push(f.map(|f| finish(model, f)));
+        }
+        if kept.is_some() {
+            *self
+                .one_sample
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner) = kept;
         }
         (preds, pixels, flats.into_iter().collect())
     }
@@ -255,7 +294,7 @@ impl<'a> Ctx<'a> {
         let inputs = match self.geometry {
             Geometry::Heightfield { grid, albedo } => Some(match flat {
                 Some(flat) => TextureInputs::with_flat(self, model, flat),
-                None => TextureInputs::new(self, grid, albedo, model),
+                None => TextureInputs::kept_or_new(self, grid, albedo, model),
             }),
             _ => None,
         };

@@ -293,9 +293,52 @@ impl SensorModel {
         calibrated: &CameraModel,
         noise_seed: Option<u64>,
     ) -> SensorRender {
+        let rendered = self.relight_radiance(scene, hits, light);
+        self.finish_rendered(rendered, calibrated, noise_seed)
+    }
+
+    /// The plain render (radiance, depth, mask) of [`SensorModel::relight`], before the image
+    /// effects and the texture's transfer: what a model of the same distortion, pose bias and
+    /// `shadows` effect shares with this one ([`SensorModel::finish_rendered`] makes its
+    /// digital numbers).
+    pub fn relight_radiance(
+        &self,
+        scene: &crate::render::Scene<'_>,
+        hits: &crate::render::PrimaryHits,
+        light: &Light,
+    ) -> crate::render::Rendered {
         let (opts, light) = self.lighting(light, Sampling::Full(1));
-        let rendered = scene.relight(hits, &light, opts.shadows);
+        scene.relight(hits, &light, opts.shadows)
+    }
+
+    /// `rendered`, a plain render of the camera `calibrated` through this model's distortion
+    /// and pose bias, finished through its texture transfer and image effects (the noise only
+    /// with a `noise_seed`): what [`SensorModel::render`] returns for it.
+    pub fn finish_rendered(
+        &self,
+        rendered: crate::render::Rendered,
+        calibrated: &CameraModel,
+        noise_seed: Option<u64>,
+    ) -> SensorRender {
         self.finish(rendered, self.camera(calibrated), calibrated, noise_seed)
+    }
+
+    /// The effects that decide where this model's camera rays go (its distortion and pose
+    /// bias, in order): two models with the same ones trace the same rays.
+    pub fn ray_effects(&self) -> Vec<Effect> {
+        self.effects
+            .iter()
+            .filter(|e| matches!(e, Effect::Distortion { .. } | Effect::PoseBias { .. }))
+            .copied()
+            .collect()
+    }
+
+    /// This model's cast-shadow effect, if any.
+    pub fn shadows_effect(&self) -> Option<Effect> {
+        self.effects
+            .iter()
+            .find(|e| matches!(e, Effect::Shadows { .. }))
+            .copied()
     }
 
     /// The cast shadow of this model's light on `hits` (see [`crate::render::CastShadow`]), to

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use crate::gap::blur::EdgeView;
 use crate::gap::context::{has, jackknife, named, upsert, Ctx};
+use crate::gap::one_sample::Shading;
 use crate::gap::views::GapView;
 use crate::gap::{blur, Named, Withheld};
 use crate::sensor::{Effect, SensorModel};
@@ -25,7 +26,10 @@ pub(crate) fn blur_stage(
     if has(model, "blur") {
         return None;
     }
-    let preds = ctx.predict_sampled(model, 1);
+    // The first step's one-sample renders while the model's rays and light are its.
+    let preds = ctx
+        .one_sample(model, Shading::Lit)
+        .unwrap_or_else(|| ctx.predict_sampled(model, 1));
     let means: Vec<Vec<f32>> = ctx.views.iter().map(GapView::mean).collect();
     // The expected image (no noise); each view's render through it with a PSF of σ added,
     // on the 8-bit range.

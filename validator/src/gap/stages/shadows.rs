@@ -6,6 +6,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::{Arc, Mutex};
 
 use crate::gap::context::{has, jackknife, named, upsert, Ctx};
+use crate::gap::one_sample::Shading;
 use crate::gap::views::{predict_relit, GapView, Prediction};
 use crate::gap::{shadows, Named};
 use crate::render::{CastShadow, Light, PrimaryHits};
@@ -55,17 +56,24 @@ pub(crate) fn shadows_stage(ctx: &Ctx<'_>, model: &mut SensorModel, out: &mut Ve
     // The views lit and shadowed by the recorded light, each from its camera rays traced for
     // it alone: most campaigns stop at the test below, and the rays of every view kept
     // together are the stage's largest memory (estec: 94 MB a view, 1.5 GB).
-    let (lit, shadowed): (Vec<Prediction>, Vec<Prediction>) = ctx
-        .views
-        .iter()
-        .map(|v| {
-            let hits = trace(v);
-            (
-                predict_relit(&ctx.scene, &ctx.light, v, model, &hits),
-                predict_relit(&ctx.scene, &ctx.light, v, &with(record), &hits),
-            )
-        })
-        .unzip();
+    // The first step's, when the model's rays are its (nothing geometric named).
+    let kept = ctx
+        .one_sample(model, Shading::Lit)
+        .zip(ctx.one_sample(&with(record), Shading::Shadowed));
+    let (lit, shadowed): (Vec<Prediction>, Vec<Prediction>) = match kept {
+        Some(pair) => pair,
+        None => ctx
+            .views
+            .iter()
+            .map(|v| {
+                let hits = trace(v);
+                (
+                    predict_relit(&ctx.scene, &ctx.light, v, model, &hits),
+                    predict_relit(&ctx.scene, &ctx.light, v, &with(record), &hits),
+                )
+            })
+            .unzip(),
+    };
     // A light that casts no shadow the views would see has nothing to test or refine, and
     // shadows that make the prediction worse where the record casts them are not in the scene
     // (see `shadows::MIN_EXPLAINED_AT_RECORD`): the direction search would only confirm it.

@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use regolith_format::frames::Pose;
 
 use crate::gap::context::{has, jackknife, named, upsert, Ctx};
+use crate::gap::one_sample::Shading;
 use crate::gap::views::{predict, Prediction};
 use crate::gap::{texture, Named, TextureFigures};
 use crate::render::{AlbedoGrid, Geometry, HeightGrid, Scene};
@@ -50,6 +51,25 @@ impl TextureInputs {
         Self::with_flat(ctx, model, flat)
     }
 
+    /// [`TextureInputs::new`], the flat renders taken from the first step's kept ones
+    /// ([`Ctx::one_sample`]) while `model`'s rays and light are its: shaded from the traced
+    /// rays under exactly the uniform albedo, where a render of the uniform grid interpolates
+    /// it to within a rounding.
+    pub(crate) fn kept_or_new(
+        ctx: &Ctx<'_>,
+        grid: &HeightGrid,
+        albedo: &AlbedoGrid,
+        model: &SensorModel,
+    ) -> Self {
+        let kept = ctx
+            .one_sample(model, Shading::Flat)
+            .filter(|_| ctx.one_sample_flat_albedo() == Some(flat_albedo(albedo)));
+        match kept {
+            Some(flat) => Self::with_flat(ctx, model, flat),
+            None => Self::new(ctx, grid, albedo, model),
+        }
+    }
+
     /// The inputs of `model` given its `flat` renders (the views under [`flat_albedo`]).
     pub(crate) fn with_flat(ctx: &Ctx<'_>, model: &SensorModel, flat: Vec<Prediction>) -> Self {
         // Ratios are taken on radiance: the response curve and black level undone (a curve
@@ -92,7 +112,7 @@ pub(crate) fn texture_stage(
     let Geometry::Heightfield { grid, albedo } = ctx.geometry else {
         return None;
     };
-    let inputs = TextureInputs::new(ctx, grid, albedo, model);
+    let inputs = TextureInputs::kept_or_new(ctx, grid, albedo, model);
     let views = inputs.views(ctx);
     let m = texture::TextureMeasure::new(&views, albedo)?;
     let (blur, correlation) = m.blur_m(&|_| true)?;
