@@ -693,13 +693,9 @@ fn a_distant_fine_texture_is_filtered_not_aliased() {
     );
 }
 
-/// A view's camera rays traced once and shaded under other lights give the bytes of full
-/// renders under those lights — heightfield and mesh, with and without cast shadows, at one and
-/// two samples per axis (two adds the centre ray) — while the lights' shadows do differ. A
-/// light's kept cast shadow shades them to the same bytes, and one kept for another light's
-/// direction is not used.
-#[test]
-fn relit_hits_give_the_bytes_of_a_render() {
+/// The textured box terrain as a heightfield and as a mesh, and an oblique view of it: the
+/// scene of the relighting tests.
+fn relight_scene() -> (Geometry, Geometry, View) {
     let hf = Geometry::Heightfield {
         grid: box_grid(),
         albedo: albedo(201, 201, 0.02, |x, y| {
@@ -708,6 +704,17 @@ fn relit_hits_give_the_bytes_of_a_render() {
     };
     let mesh = Geometry::Mesh(as_mesh(&box_grid(), 0.4));
     let view = View::look_at(real_camera(), [0.3, -3.8, 1.5], [2.0, -2.0, 0.1]);
+    (hf, mesh, view)
+}
+
+/// A view's camera rays traced once and shaded under other lights give the bytes of full
+/// renders under those lights — heightfield and mesh, with and without cast shadows, at one and
+/// two samples per axis (two adds the centre ray) — while the lights' shadows do differ. A
+/// light's kept cast shadow shades them to the same bytes, and one kept for another light's
+/// direction is not used.
+#[test]
+fn relit_hits_give_the_bytes_of_a_render() {
+    let (hf, mesh, view) = relight_scene();
     for g in [&hf, &mesh] {
         let scene = Scene::new(g);
         for n in [1, 2] {
@@ -755,14 +762,7 @@ fn relit_hits_give_the_bytes_of_a_render() {
 /// image.
 #[test]
 fn a_render_from_kept_hits_gives_the_bytes_of_a_render() {
-    let hf = Geometry::Heightfield {
-        grid: box_grid(),
-        albedo: albedo(201, 201, 0.02, |x, y| {
-            0.4 + 0.2 * (x * 9.0).sin() * (y * 7.0).cos()
-        }),
-    };
-    let mesh = Geometry::Mesh(as_mesh(&box_grid(), 0.4));
-    let view = View::look_at(real_camera(), [0.3, -3.8, 1.5], [2.0, -2.0, 0.1]);
+    let (hf, mesh, view) = relight_scene();
     let elsewhere = View::look_at(real_camera(), [4.0, -0.5, 1.2], [2.0, -2.0, 0.1]);
     let l = light(200.0, 35.0, 0.2);
     for g in [&hf, &mesh] {

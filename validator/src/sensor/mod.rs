@@ -220,17 +220,35 @@ impl SensorModel {
         sampling: impl Into<Sampling>,
         noise_seed: Option<u64>,
     ) -> SensorRender {
+        self.render_by(
+            light,
+            calibrated,
+            at,
+            sampling.into(),
+            noise_seed,
+            |l, v, o| scene.render(l, v, o),
+        )
+    }
+
+    /// A render of the camera `calibrated` at `at` under this model, drawn by `draw` from the
+    /// model's light, view and options: what [`SensorModel::render`] and
+    /// [`SensorModel::render_from_hits`] share.
+    fn render_by(
+        &self,
+        light: &Light,
+        calibrated: &CameraModel,
+        at: &Placement,
+        sampling: Sampling,
+        noise_seed: Option<u64>,
+        draw: impl FnOnce(&Light, &crate::render::View, &RenderOptions) -> crate::render::Rendered,
+    ) -> SensorRender {
         let camera = self.camera(calibrated);
-        let (opts, light) = self.lighting(light, sampling.into());
-        let rendered = scene.render(
-            &light,
-            &crate::render::View {
-                camera: camera.clone(),
-                ground_from_camera: self.pose(at),
-            },
-            &opts,
-        );
-        self.finish(rendered, camera, calibrated, noise_seed)
+        let (opts, light) = self.lighting(light, sampling);
+        let view = crate::render::View {
+            camera: camera.clone(),
+            ground_from_camera: self.pose(at),
+        };
+        self.finish(draw(&light, &view, &opts), camera, calibrated, noise_seed)
     }
 
     /// The first hits of the camera rays of [`SensorModel::render`] (the model's distortion
@@ -268,18 +286,14 @@ impl SensorModel {
         sampling: impl Into<Sampling>,
         noise_seed: Option<u64>,
     ) -> SensorRender {
-        let camera = self.camera(calibrated);
-        let (opts, light) = self.lighting(light, sampling.into());
-        let rendered = scene.render_from_hits(
-            hits,
-            &light,
-            &crate::render::View {
-                camera: camera.clone(),
-                ground_from_camera: self.pose(at),
-            },
-            &opts,
-        );
-        self.finish(rendered, camera, calibrated, noise_seed)
+        self.render_by(
+            light,
+            calibrated,
+            at,
+            sampling.into(),
+            noise_seed,
+            |l, v, o| scene.render_from_hits(hits, l, v, o),
+        )
     }
 
     /// [`SensorModel::render`] from `hits`, traced by [`SensorModel::primary_hits`] with a model
