@@ -28,8 +28,8 @@ fn gauss_kernel() -> [f64; 11] {
 }
 
 /// Separable Gaussian filter with edge clamping. Row by row: a row is padded with its edge
-/// values so the horizontal taps need no clamping, and the vertical pass adds whole rows, tap
-/// by tap; each output is the same sum in the same order as a per-pixel loop, so the result
+/// values so the horizontal taps need no clamping, and both passes add whole rows, tap by tap
+/// (the horizontal one the padded row shifted by the tap); each output is the same sum in the same order as a per-pixel loop, so the result
 /// does not depend on the rows' split between threads.
 fn filter(img: &[f64], w: usize, h: usize) -> Vec<f64> {
     let k = gauss_kernel();
@@ -47,12 +47,13 @@ fn filter(img: &[f64], w: usize, h: usize) -> Vec<f64> {
             pad.extend(std::iter::repeat_n(first, r));
             pad.extend_from_slice(row);
             pad.extend(std::iter::repeat_n(last, r));
-            for (x, o) in out.iter_mut().enumerate() {
-                let mut s = 0.0;
-                for (kv, v) in k.iter().zip(pad.get(x..x + k.len()).unwrap_or(&[])) {
-                    s += kv * v;
+            // Tap by tap over the whole row (vectorises): each output still sums its taps
+            // in order from 0.
+            out.fill(0.0);
+            for (i, kv) in k.iter().enumerate() {
+                for (o, v) in out.iter_mut().zip(pad.get(i..).unwrap_or(&[])) {
+                    *o += kv * v;
                 }
-                *o = s;
             }
         });
     let mut out = vec![0.0; w * h];
@@ -142,5 +143,40 @@ mod tests {
             .map(|i| ((i * 104729) % 256) as f32)
             .collect();
         assert!(compare(&img, &noise, &mask, 64, 48).ssim < 0.2);
+    }
+
+    #[test]
+    fn the_filter_is_the_per_pixel_clamped_convolution_bit_for_bit() {
+        let (w, h) = (37, 23);
+        let img: Vec<f64> = (0..w * h)
+            .map(|i| ((i * 7919) % 251) as f64 * 0.37 + (i % 7) as f64 * 1e-3)
+            .collect();
+        let k = gauss_kernel();
+        let r = k.len() / 2;
+        let at = |x: isize, y: usize| img[y * w + x.clamp(0, w as isize - 1) as usize];
+        let mut rows = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut s = 0.0;
+                for (i, kv) in k.iter().enumerate() {
+                    s += kv * at(x as isize + i as isize - r as isize, y);
+                }
+                rows[y * w + x] = s;
+            }
+        }
+        let mut expected = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut s = 0.0;
+                for (i, kv) in k.iter().enumerate() {
+                    let yy = (y + i).saturating_sub(r).min(h - 1);
+                    s += kv * rows[yy * w + x];
+                }
+                expected[y * w + x] = s;
+            }
+        }
+        let got = filter(&img, w, h);
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+        assert_eq!(bits(&got), bits(&expected));
     }
 }
