@@ -29,8 +29,9 @@ fn gauss_kernel() -> [f64; 11] {
 
 /// Separable Gaussian filter with edge clamping. Row by row: a row is padded with its edge
 /// values so the horizontal taps need no clamping, and both passes add whole rows, tap by tap
-/// (the horizontal one the padded row shifted by the tap); each output is the same sum in the same order as a per-pixel loop, so the result
-/// does not depend on the rows' split between threads.
+/// (the horizontal one the padded row shifted by the tap); each output is the same sum in the
+/// same order as a per-pixel loop, so the result does not depend on the rows' split between
+/// threads.
 fn filter(img: &[f64], w: usize, h: usize) -> Vec<f64> {
     let k = gauss_kernel();
     let r = k.len() / 2;
