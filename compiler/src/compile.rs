@@ -333,14 +333,18 @@ fn laser_terrain(
             ground_from_socs: r.ground_from_socs,
         })
         .collect();
-    let merged = merge.run(&ctx.cx, &merge_in)?;
-    drop(merge_in);
+    let mut merged = merge.merge_owned(&ctx.cx, merge_in)?;
+    // The TIN reads the points and the albedo; what else is per point is not needed again.
+    merged.reflectance_db = None;
+    merged.reflectance = None;
+    merged.scan = Vec::new();
     ctx.record(&merge);
     ctx.lap(MergeClean::NAME);
     let dem_tin = DemTin {
         max_edge_m: LASER_MAX_EDGE_M,
     };
     let tin = dem_tin.run(&ctx.cx, &merged)?;
+    merged.albedo = None; // the TIN's vertices carry it now
     ctx.record(&dem_tin);
     ctx.lap(DemTin::NAME);
     let raster = DemRaster::new(

@@ -182,3 +182,58 @@ fn range_noise_does_not_become_albedo_noise() {
     assert!(err_db.len() > 200_000);
     assert!(rms < 0.3, "albedo error {rms} dB RMS");
 }
+
+/// Points 20 cm off the plane are statistical outliers: the filter drops them (and the sparse
+/// rim of the ray pattern), every kept point keeps its own reflectance and scan (the arrays are
+/// filtered together, in place), in merge order, whether the stage borrows the scans or frees
+/// them as it merges.
+#[test]
+fn outliers_are_dropped_with_their_values_and_scans_may_be_freed() {
+    let mut scans = vec![
+        scan("a", Vector3::new(0.0, 0.0, HEIGHT_M), 0.3),
+        scan("b", Vector3::new(0.4, 0.1, HEIGHT_M), -1.1),
+    ];
+    let mut spikes = Vec::new();
+    for s in &mut scans {
+        let socs_from_ground = invert_rigid(&s.ground_from_socs);
+        let n = s.cloud.points.len();
+        for k in (n / 7..n / 2).step_by(n / 20) {
+            let p = transform(&s.ground_from_socs, s.cloud.points[k]);
+            let off = Vector3::from(p) + plane_normal() * 0.2;
+            s.cloud.points[k] = transform(&socs_from_ground, off.into());
+            spikes.push(off);
+        }
+    }
+    let inputs: Vec<([f64; 3], f32, u32)> = scans
+        .iter()
+        .zip(0u32..)
+        .flat_map(|(s, si)| {
+            let db = s.cloud.reflectance_db.as_ref().unwrap();
+            s.cloud
+                .points
+                .iter()
+                .zip(db)
+                .map(move |(p, &d)| (transform(&s.ground_from_socs, *p), d, si))
+        })
+        .collect();
+    let cx = StageCx::default();
+    let merged = MergeClean::default().run(&cx, &scans).unwrap();
+    let kept = merged.points.len();
+    assert_eq!(merged.stats.outliers_removed, inputs.len() - kept);
+    assert!(kept > inputs.len() * 9 / 10, "{kept} of {}", inputs.len());
+    let db = merged.reflectance_db.as_ref().unwrap();
+    let mut next = inputs.iter();
+    for ((p, d), si) in merged.points.iter().zip(db).zip(&merged.scan) {
+        let found = next
+            .find(|(q, _, _)| q == p)
+            .expect("kept points in merge order");
+        assert_eq!((found.1, found.2), (*d, *si));
+        assert!(!spikes
+            .iter()
+            .any(|s| (Vector3::from(found.0) - s).norm() < 1e-9));
+    }
+    let owned = MergeClean::default()
+        .merge_owned(&StageCx::default(), scans)
+        .unwrap();
+    assert_eq!(owned, merged);
+}

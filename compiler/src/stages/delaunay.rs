@@ -21,8 +21,10 @@
 //! stays deterministic). A cloud of at most `STRIP_POINTS` points, or an infinite `max_edge`, is
 //! one spade triangulation filtered by edge length.
 //!
-//! Order: strips left to right, within a strip spade's face order; bit-identical for any thread
-//! count.
+//! Order: the triangles proven within their strip, strips left to right, each in spade's face
+//! order, then those the grid check kept, in the same order; bit-identical for any thread count
+//! (`dem.tin` sorts them anyway). Each strip's list is freed as it is copied into the result, so
+//! the strips' lists and the result are never both whole in memory.
 
 use rayon::prelude::*;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
@@ -197,8 +199,12 @@ impl PointGrid {
     }
 }
 
-/// One strip's triangles: kept outright (`false`) or needing the grid check (`true`).
-type StripTriangles = Vec<([u32; 3], bool)>;
+/// One strip's triangles: those kept outright, and those whose circumcircle reaches past the
+/// points the strip triangulated (kept only if the grid check finds the circle empty).
+struct StripTriangles {
+    kept: Vec<[u32; 3]>,
+    unproven: Vec<[u32; 3]>,
+}
 
 /// The longest horizontal edge of a triangle (the hole rule of `dem.tin` and `dem.raster`).
 pub(super) fn longest_edge(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
@@ -263,47 +269,53 @@ fn triangulate_in_strips(
                 x(lo - 1)
             };
             let right = if hi == n { f64::INFINITY } else { x(hi) };
-            let tris = spade_triangles(vertices, lo..hi)?;
-            Ok(tris
-                .into_iter()
-                .filter_map(|t| {
-                    let [a, b, c] = t.map(corner);
-                    let cx = (a[0] + b[0] + c[0]) / 3.0;
-                    if cx < core0 || cx >= core1 || longest_edge(a, b, c) > max_edge {
-                        return None;
-                    }
-                    let proven = circumcircle(a, b, c).is_some_and(|(centre, r2)| {
-                        let r = r2.sqrt() * (1.0 + 1e-9);
-                        centre[0] - r > left && centre[0] + r < right
-                    });
-                    Some((t, !proven))
-                })
-                .collect())
+            let mut kept = spade_triangles(vertices, lo..hi)?;
+            let mut unproven = Vec::new();
+            kept.retain(|&t| {
+                let [a, b, c] = t.map(corner);
+                let cx = (a[0] + b[0] + c[0]) / 3.0;
+                if cx < core0 || cx >= core1 || longest_edge(a, b, c) > max_edge {
+                    return false;
+                }
+                let proven = circumcircle(a, b, c).is_some_and(|(centre, r2)| {
+                    let r = r2.sqrt() * (1.0 + 1e-9);
+                    centre[0] - r > left && centre[0] + r < right
+                });
+                if !proven {
+                    unproven.push(t);
+                }
+                proven
+            });
+            kept.shrink_to_fit();
+            Ok(StripTriangles { kept, unproven })
         })
         .collect();
     let per_strip: Vec<StripTriangles> = per_strip.into_iter().collect::<Result<_, _>>()?;
-    let grid = per_strip
+    let unproven: Vec<[u32; 3]> = per_strip
         .iter()
-        .any(|s| s.iter().any(|(_, check)| *check))
-        .then(|| PointGrid::new(vertices, GRID_SPACINGS * spacing));
-    let kept: Vec<Vec<[u32; 3]>> = per_strip
-        .into_par_iter()
-        .map(|strip| {
-            strip
-                .into_iter()
-                .filter(|&(t, check)| {
-                    let Some(grid) = grid.as_ref().filter(|_| check) else {
-                        return true;
-                    };
-                    let [a, b, c] = t.map(corner);
-                    circumcircle(a, b, c)
-                        .is_some_and(|(centre, r2)| grid.circle_is_empty(vertices, t, centre, r2))
-                })
-                .map(|(t, _)| t)
-                .collect()
-        })
+        .flat_map(|s| s.unproven.iter().copied())
         .collect();
-    Ok(kept.concat())
+    let checked: Vec<[u32; 3]> = if unproven.is_empty() {
+        Vec::new()
+    } else {
+        let grid = PointGrid::new(vertices, GRID_SPACINGS * spacing);
+        unproven
+            .into_par_iter()
+            .filter(|&t| {
+                let [a, b, c] = t.map(corner);
+                circumcircle(a, b, c)
+                    .is_some_and(|(centre, r2)| grid.circle_is_empty(vertices, t, centre, r2))
+            })
+            .collect()
+    };
+    // One list, each strip's freed once copied (the strips and the list are never both whole).
+    let total = per_strip.iter().map(|s| s.kept.len()).sum::<usize>() + checked.len();
+    let mut all = Vec::with_capacity(total);
+    for strip in per_strip {
+        all.extend_from_slice(&strip.kept);
+    }
+    all.extend(checked);
+    Ok(all)
 }
 
 #[cfg(test)]

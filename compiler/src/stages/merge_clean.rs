@@ -35,6 +35,8 @@
 //!   descent per point; the distances are exact (bit for bit those of a kd-tree), so the means
 //!   do not depend on the method or the thread count.
 
+use std::borrow::Borrow;
+
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -147,10 +149,32 @@ impl MergeClean {
 
     /// Transforms, merges, filters and thins.
     pub fn merge(&self, cx: &StageCx, scans: &[MergeScan]) -> Result<MergedCloud, StageError> {
+        self.merge_from(cx, scans.iter())
+    }
+
+    /// [`MergeClean::merge`] of scans it may free: each scan's points are dropped once merged, so
+    /// a full survey is not held twice while its outliers are found.
+    pub fn merge_owned(
+        &self,
+        cx: &StageCx,
+        scans: Vec<MergeScan>,
+    ) -> Result<MergedCloud, StageError> {
+        self.merge_from(cx, scans.into_iter())
+    }
+
+    fn merge_from<S: Borrow<MergeScan>>(
+        &self,
+        cx: &StageCx,
+        scans: impl Iterator<Item = S>,
+    ) -> Result<MergedCloud, StageError> {
         let mut all = MergedCloud::default();
         let mut db: Option<Vec<f32>> = Some(Vec::new());
         let mut rho: Option<Vec<f32>> = Some(Vec::new());
+        let (mut names, mut origins) = (Vec::new(), Vec::new());
         for (si, s) in (0u32..).zip(scans) {
+            let s = s.borrow();
+            names.push(s.name.clone());
+            origins.push(translation_part(&s.ground_from_socs));
             let c = &s.cloud;
             let n = c.points.len();
             let err = |what: &str, len: usize| {
@@ -217,26 +241,28 @@ impl MergeClean {
         all.reflectance = rho;
         all.stats.input_points = all.points.len();
         let keep = self.outlier_mask(&all.points, &mut all.stats)?;
-        let mut idx: Vec<usize> = (0..all.points.len())
-            .filter(|&i| keep.get(i) == Some(&true))
-            .collect();
-        drop(keep);
-        all.stats.outliers_removed = all.points.len() - idx.len();
-        if let Some(v) = self.voxel_m {
-            let before = idx.len();
-            idx = voxel_thin(&all.points, idx, v);
-            all.stats.thinned = before - idx.len();
-        }
-        let origins: Vec<Vector3<f64>> = scans
-            .iter()
-            .map(|s| translation_part(&s.ground_from_socs))
-            .collect();
-        let mut out = select(all, &idx);
+        all.stats.outliers_removed = keep.iter().filter(|&&k| !k).count();
+        let mut out = match self.voxel_m {
+            Some(v) => {
+                let idx: Vec<usize> = (0..all.points.len())
+                    .filter(|&i| keep.get(i) == Some(&true))
+                    .collect();
+                drop(keep);
+                let before = idx.len();
+                let idx = voxel_thin(&all.points, idx, v);
+                all.stats.thinned = before - idx.len();
+                select(all, &idx)
+            }
+            None => {
+                retain_kept(&mut all, &keep);
+                all
+            }
+        };
         out.albedo = out
             .reflectance
             .as_deref()
             .map(|rho| incidence_albedo(&out.points, &out.scan, rho, &origins));
-        calibrate(cx, scans, &origins, &mut out);
+        calibrate(cx, &names, &origins, &mut out);
         Ok(out)
     }
 
@@ -273,12 +299,11 @@ impl MergeClean {
 /// Fits the cross-scan radiometric calibration on the albedo and applies it to the albedo and
 /// the reflectance (module doc); a campaign whose scans do not overlap enough keeps its values
 /// and gets a warning.
-fn calibrate(cx: &StageCx, scans: &[MergeScan], origins: &[Vector3<f64>], out: &mut MergedCloud) {
+fn calibrate(cx: &StageCx, names: &[String], origins: &[Vector3<f64>], out: &mut MergedCloud) {
     let (Some(albedo), Some(rho)) = (out.albedo.as_mut(), out.reflectance.as_deref()) else {
         return;
     };
-    let names: Vec<String> = scans.iter().map(|s| s.name.clone()).collect();
-    match radiometry::fit(&out.points, &out.scan, albedo, rho, origins, &names) {
+    match radiometry::fit(&out.points, &out.scan, albedo, rho, origins, names) {
         Ok(cal) => {
             if !cal.applied {
                 cx.reporter.warn(
@@ -336,6 +361,28 @@ fn voxel_thin(points: &[[f64; 3]], idx: Vec<usize>, voxel: f64) -> Vec<usize> {
         }
     }
     out
+}
+
+/// Keeps the points whose `keep` is true, in place (every per-point array together, in order):
+/// the cloud is not copied, which on a full survey would hold a second one in memory.
+fn retain_kept(all: &mut MergedCloud, keep: &[bool]) {
+    fn retain<T>(v: &mut Vec<T>, keep: &[bool]) {
+        // `Vec::retain` visits every element once, in order.
+        let mut k = keep.iter();
+        v.retain(|_| k.next().copied().unwrap_or(false));
+    }
+    retain(&mut all.points, keep);
+    retain(&mut all.scan, keep);
+    for v in [
+        &mut all.reflectance_db,
+        &mut all.reflectance,
+        &mut all.albedo,
+    ]
+    .into_iter()
+    .flatten()
+    {
+        retain(v, keep);
+    }
 }
 
 /// The subset `idx` of a merged cloud (all per-point arrays together).
