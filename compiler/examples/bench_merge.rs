@@ -2,9 +2,9 @@
 //! does, places it with the generator's true `ground_from_socs` (`truth/scans.json`; registration
 //! is not what is measured), runs the stage and prints its seconds, the output counts and a
 //! SHA-256 of every output array (points, scan, reflectance, albedo, stats) so two builds can be
-//! compared byte for byte. `--phases` also times the neighbourhood parts on their own (index
-//! build, SOR and normal neighbours) for the kiddo tree (the previous index, still used by
-//! other stages) and for `KnnIndex`. Timing lives here, never in tests.
+//! compared byte for byte. `--phases` also times the neighbourhood parts on their own: the SOR
+//! neighbours by the column grid `merge.clean` uses, and the same and the normal-sized queries
+//! by the kd-tree `KnnIndex`. Timing lives here, never in tests.
 //!
 //! `cargo run --release -p regolith-compiler --example bench_merge -- CAMPAIGN_DIR [--phases]`
 //! (e.g. after `regolith corpus generate --preset estec --seed 1 --full --out /tmp/estec_m/camp`).
@@ -20,6 +20,7 @@ use regolith_compiler::inventory;
 use regolith_compiler::stage::{Stage, StageCx};
 use regolith_compiler::stages::geometry::{build_tree, knn, KnnIndex};
 use regolith_compiler::stages::merge_clean::{MergeClean, MergeScan, MergedCloud};
+use regolith_compiler::stages::self_knn::map_self_knn;
 
 /// Neighbours of the normal-sized queries timed and checked (the incidence normals of
 /// `merge.clean` used the 16 nearest points before they moved to a ground window).
@@ -110,30 +111,14 @@ fn main() {
             t.elapsed().as_secs_f64()
         );
         let t = Instant::now();
-        let tree = build_tree(&pts).expect("points");
-        println!(
-            "kiddo index build         {:7.2} s",
-            t.elapsed().as_secs_f64()
-        );
-        let t = Instant::now();
-        let s: f64 = pts
-            .par_iter()
-            .map(|p| knn(&tree, p, 9).iter().map(|x| x.1).sum::<f64>())
+        let s: f64 = map_self_knn(&pts, 9, |d2| d2.iter().map(|d| d.sqrt()).sum::<f64>())
+            .expect("points")
+            .iter()
             .sum();
         println!(
-            "kiddo SOR knn (k=9)       {:7.2} s  ({s:.6})",
+            "column grid knn (k= 9)    {:7.2} s  ({s:.6})",
             t.elapsed().as_secs_f64()
         );
-        let t = Instant::now();
-        let s: f64 = pts
-            .par_iter()
-            .map(|p| knn(&tree, p, NORMAL_K).iter().map(|x| x.1).sum::<f64>())
-            .sum();
-        println!(
-            "kiddo normal knn (k=16)   {:7.2} s  ({s:.6})",
-            t.elapsed().as_secs_f64()
-        );
-        drop(tree);
         let t = Instant::now();
         let ix = KnnIndex::new(&pts).expect("points");
         println!(
