@@ -237,3 +237,45 @@ fn outliers_are_dropped_with_their_values_and_scans_may_be_freed() {
         .unwrap();
     assert_eq!(owned, merged);
 }
+
+/// Voxel thinning after the outlier filter keeps, per voxel of the merged cloud, the point
+/// nearest the voxel's centre (brute force over the unthinned cleaned cloud), with its values.
+#[test]
+fn voxel_thinning_keeps_the_point_nearest_each_voxel_centre() {
+    let scans = [
+        scan("a", Vector3::new(0.0, 0.0, HEIGHT_M), 0.3),
+        scan("b", Vector3::new(0.4, 0.1, HEIGHT_M), -1.1),
+    ];
+    let cx = StageCx::default();
+    let voxel = 0.05;
+    let clean = MergeClean::default().run(&cx, &scans).unwrap();
+    let thin = MergeClean::new(8, 3.0, Some(voxel), 10.0)
+        .unwrap()
+        .run(&cx, &scans)
+        .unwrap();
+    let key = |p: &[f64; 3]| p.map(|v| (v / voxel).floor() as i64);
+    let d2 = |p: &[f64; 3]| {
+        let k = key(p);
+        (0..3)
+            .map(|a| (p[a] - (k[a] as f64 + 0.5) * voxel).powi(2))
+            .sum::<f64>()
+    };
+    let mut best = std::collections::BTreeMap::new();
+    for (i, p) in clean.points.iter().enumerate() {
+        let e = best.entry(key(p)).or_insert(i);
+        if d2(p) < d2(&clean.points[*e]) {
+            *e = i;
+        }
+    }
+    assert_eq!(thin.stats.outliers_removed, clean.stats.outliers_removed);
+    assert_eq!(thin.stats.thinned, clean.points.len() - best.len());
+    let db = clean.reflectance_db.as_ref().unwrap();
+    let expected: Vec<([f64; 3], f32)> = best.values().map(|&i| (clean.points[i], db[i])).collect();
+    let got: Vec<([f64; 3], f32)> = thin
+        .points
+        .iter()
+        .copied()
+        .zip(thin.reflectance_db.unwrap())
+        .collect();
+    assert_eq!(got, expected);
+}

@@ -242,21 +242,15 @@ impl MergeClean {
         all.stats.input_points = all.points.len();
         let keep = self.outlier_mask(&all.points, &mut all.stats)?;
         all.stats.outliers_removed = keep.iter().filter(|&&k| !k).count();
+        retain_kept(&mut all, &keep);
+        drop(keep);
         let mut out = match self.voxel_m {
             Some(v) => {
-                let idx: Vec<usize> = (0..all.points.len())
-                    .filter(|&i| keep.get(i) == Some(&true))
-                    .collect();
-                drop(keep);
-                let before = idx.len();
-                let idx = voxel_thin(&all.points, idx, v);
-                all.stats.thinned = before - idx.len();
+                let idx = voxel_thin(&all.points, v);
+                all.stats.thinned = all.points.len() - idx.len();
                 select(all, &idx)
             }
-            None => {
-                retain_kept(&mut all, &keep);
-                all
-            }
+            None => all,
         };
         out.albedo = out
             .reflectance
@@ -335,11 +329,11 @@ fn calibrate(cx: &StageCx, names: &[String], origins: &[Vector3<f64>], out: &mut
 }
 
 /// Keeps per voxel the point nearest to the voxel centre; output sorted by voxel key.
-fn voxel_thin(points: &[[f64; 3]], idx: Vec<usize>, voxel: f64) -> Vec<usize> {
-    let keyed: Vec<([i64; 3], f64, usize)> = idx
+fn voxel_thin(points: &[[f64; 3]], voxel: f64) -> Vec<usize> {
+    let keyed: Vec<([i64; 3], f64, usize)> = points
         .par_iter()
-        .map(|&i| {
-            let p = points.get(i).copied().unwrap_or([0.0; 3]);
+        .enumerate()
+        .map(|(i, &p)| {
             let k = p.map(|v| (v / voxel).floor() as i64);
             let d2: f64 = (0..3)
                 .map(|a| {
