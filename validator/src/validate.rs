@@ -43,29 +43,30 @@ use crate::render::{AlbedoGrid, Geometry, HeightGrid, Light, RayTables, Sampling
 use crate::sensor::{stored_model, Placement, SensorModel};
 
 /// Version of the validator recorded in certificates and in sharded units' keys: its minor
-/// number changes with the method (0.2: renders take their 2 x 2 samples at edge pixels only),
-/// so a stored unit of another method is never merged into a certificate of this one.
+/// number changes with the method (0.2: renders take their 2 x 2 samples at edge pixels only;
+/// 0.3: SIFT and SURF keypoints are compared by region overlap), so a stored unit of another
+/// method is never merged into a certificate of this one.
 pub const VALIDATOR_VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// Pass/fail thresholds (documented defaults; `--thresholds FILE` overrides them).
 ///
-/// The defaults were calibrated with `tools/calibrate/validate_thresholds.py` on `mini` corpus
-/// campaigns without hidden effects (seeds 1–8), each compiled with its laser rasters at 0.01 and
-/// 0.02 m, a deliberately coarse 0.05 m raster and the SfM raster at 0.02 m. Ratio of the
-/// repeatability over chance to the real-vs-real ceiling, range over the 8 seeds (laser/0.01 |
-/// laser/0.02 | laser/0.05 | sfm/0.02): FAST 0.155–0.272 | 0.046–0.102 | 0.001–0.017 |
-/// 0.020–0.068; Harris 0.101–0.171 | 0.025–0.072 | 0.000–0.013 | 0.017–0.058; SIFT 0.002–0.107 |
-/// 0.023–0.059 | 0.012–0.024 | 0.016–0.049; SURF 0.028–0.071 | 0.027–0.071 | 0.011–0.040 |
-/// 0.018–0.061; MSER 0.22–0.41 | 0.18–0.36 | 0.02–0.26 | 0.11–0.35; mean over detectors
-/// 0.120–0.180 | 0.064–0.117 | 0.012–0.062 | 0.041–0.100; high-band log10 power ratio −0.34…−0.55
-/// | −0.62…−0.87 | −0.73…−0.93 | −0.56…−0.75. The corner detectors (FAST, Harris) separate
-/// the finest laser raster from every degraded entry on every seed, so their floors sit in that
-/// gap; SIFT and SURF keypoints of the best render are re-found barely above chance on some seeds
-/// (their scale-space keypoints move more than ε = 1.5 px between a render and a photograph) and
-/// MSER's overlap criterion is lenient with a coarse render's large blobs, so their floors only
-/// catch a render that is no better than chance. With these defaults laser/0.01 passes on 8 of 8
-/// seeds, laser/0.02, laser/0.05 and sfm/0.02 fail on 8 of 8, and so does laser/0.01 with its
-/// texture blurred by σ = 2 cm (`regolith control`; FAST 0.034, Harris 0.009 on seed 1).
+/// The defaults were calibrated with `tools/calibrate/validate_thresholds.py` on the training
+/// campaigns only — `mini` campaigns without hidden effects whose captures the validator's own
+/// model made (seeds 1–8) and that Mitsuba 3 rendered independently (seeds 311–313) — each
+/// compiled with its laser rasters at 0.01 and 0.02 m, a deliberately coarse 0.05 m raster and
+/// the SfM raster at 0.02 m, plus the negative control (laser/0.01 with its texture blurred by
+/// σ = 2 cm, `regolith control`). Ratio of the repeatability over chance to the real-vs-real
+/// ceiling, range over the eleven seeds (laser/0.01 | the degraded entries | the control):
+/// FAST 0.164–0.370 | ≤ 0.212 | ≤ 0.109, Harris 0.094–0.185 | ≤ 0.086 | ≤ 0.062, MSER
+/// 0.176–0.404 | ≤ 0.361 | ≤ 0.375, SIFT 0.568–0.925 | ≤ 0.443 | ≤ 0.197, SURF 0.713–0.980 |
+/// ≤ 0.697 | ≤ 0.439, mean over detectors 0.389–0.530 | ≤ 0.310 | ≤ 0.186 (per seed and per
+/// renderer in docs/validate.md). SIFT's floor and the mean's are the midpoints of the gap
+/// between the best raster and every degraded entry; SURF's, where laser/0.02 reaches the best
+/// raster on one seed, is the midpoint between the negative control and the best raster. FAST's
+/// and Harris's floors, set on the model-made seeds before, lie between the control and the best
+/// raster on all eleven. MSER's overlap criterion is lenient with a coarse render's large
+/// blobs, so its floor only catches a render that is no better than chance. The held-out test
+/// seeds 301–303 are reported in docs/validate.md and never used here.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Thresholds {
@@ -95,8 +96,8 @@ pub fn default_detector_floors() -> BTreeMap<String, f64> {
     [
         (Detector::Harris, 0.085),
         (Detector::Fast, 0.125),
-        (Detector::Sift, 0.0),
-        (Detector::Surf, 0.0),
+        (Detector::Sift, 0.51),
+        (Detector::Surf, 0.58),
         (Detector::Mser, 0.1),
     ]
     .into_iter()
@@ -139,7 +140,7 @@ impl Default for Thresholds {
     fn default() -> Self {
         Thresholds {
             epsilon_px: 1.5,
-            min_mean_ratio_to_ceiling: 0.1,
+            min_mean_ratio_to_ceiling: 0.35,
             min_ratio_to_ceiling: default_detector_floors(),
             min_repeatability: 0.1,
             max_photometric_rms: 60.0,
@@ -181,7 +182,8 @@ pub struct ViewMetrics {
     pub sim: Vec<crate::metrics::repeatability::Repeatability>,
     /// Repeatability real a→real b at the certified ε (the ceiling), if a second frame exists.
     pub ceiling: Option<Repeatability>,
-    /// MSER: region repeatability by ellipse overlap error, which the certificate uses for it.
+    /// MSER, SIFT and SURF: region repeatability by ellipse overlap error (a SIFT or SURF
+    /// keypoint's region is the circle of its size), which the certificate uses for them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub regions: Option<RegionMetrics>,
     /// SIFT: matching score and RANSAC inlier ratio (thesis Table 6.1 analogue).
@@ -189,7 +191,8 @@ pub struct ViewMetrics {
     pub matching: Option<MatchingMetrics>,
 }
 
-/// Region repeatability of one MSER view (overlap error < 40 %, 30 px normalisation).
+/// Region repeatability of one view of a scale-covariant detector (overlap error < 40 %, 30 px
+/// normalisation).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RegionMetrics {
     /// Real → render.
@@ -241,7 +244,8 @@ pub struct CertifiedFigures {
 
 impl ViewMetrics {
     /// The certified figures of this view at `eps`: point repeatability, or region
-    /// repeatability for MSER. Regions are not chance-corrected (chance 0): an overlap error
+    /// repeatability for the scale-covariant detectors (MSER, SIFT, SURF). Regions are not
+    /// chance-corrected (chance 0): an overlap error
     /// below 40 % needs a region of similar position, size and shape, which unrelated regions
     /// rarely have.
     pub fn certified(&self, eps: f64) -> Option<CertifiedFigures> {
@@ -1022,7 +1026,7 @@ fn certificate(
         protocol: json!({
             "images": "raw (distorted) real frames vs renders through the calibrated distortion; no resampling of real images",
             "contrast": "linear 1-99 % stretch on both images",
-            "repeatability": "one-directional (real keypoints re-detected within ε ÷ real keypoints) over chance: (r - p) / (1 - p), p = 1 - exp(-n_render π ε² / area), identity mapping (same pose), region = render sees terrain, one-to-one greedy pairing; MSER by ellipse overlap error < 40 % (30 px normalisation, regions fully inside the region, no chance term); Mikolajczyk & Schmid ÷ min(n) reported as score",
+            "repeatability": "one-directional (real keypoints re-detected within ε ÷ real keypoints) over chance: (r - p) / (1 - p), p = 1 - exp(-n_render π ε² / area), identity mapping (same pose), region = render sees terrain, one-to-one greedy pairing; MSER, SIFT and SURF by ellipse overlap error < 40 % (SIFT and SURF keypoints as circles of their size; 30 px normalisation, regions fully inside the region, no chance term); Mikolajczyk & Schmid ÷ min(n) reported as score",
             "matching": "SIFT: Lowe ratio 0.8, matching score = correct one-to-one matches within ε / min(n); RANSAC homography (3 px symmetric transfer error, seeded), inliers / matches; reported, not gated",
             "ceiling": if views.iter().any(|v| v.ceiling.is_some()) { "real frame a vs real frame b at the same pose" } else { "none: absolute thresholds" },
             "render": {"supersample": RENDER_SAMPLING.supersample(), "samples_at": "edge pixels (occlusion, outline, cast-shadow edges, creases); one sample with a pixel-wide texture filter elsewhere", "light": light, "sensor_model": sensor},
