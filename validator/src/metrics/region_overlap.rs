@@ -327,8 +327,9 @@ fn crossings(a: &Param, b: &Param) -> (Vec<f64>, Vec<f64>) {
 
 /// Area of `A ∩ B`, px² (0 if either ellipse is invalid).
 pub fn intersection_area(a: &Ellipse, b: &Ellipse) -> f64 {
+    let valid = a.area() > 0.0 && b.area() > 0.0;
     match (a.circle_radius(), b.circle_radius()) {
-        (Some(ra), Some(rb)) => lens_area(
+        (Some(ra), Some(rb)) if valid => lens_area(
             ra,
             rb,
             (a.center[0] - b.center[0]).hypot(a.center[1] - b.center[1]),
