@@ -52,7 +52,8 @@ pub const VALIDATOR_VERSION: &str = env!("CARGO_PKG_VERSION");
 ///
 /// The defaults were calibrated with `tools/calibrate/validate_thresholds.py` on the training
 /// campaigns only — `mini` campaigns without hidden effects whose captures the validator's own
-/// model made (seeds 1–8) and that Mitsuba 3 rendered independently (seeds 311–313) — each
+/// model made and that Mitsuba 3 rendered independently (the seeds are named in
+/// docs/validate.md) — each
 /// compiled with its laser rasters at 0.01 and 0.02 m, a deliberately coarse 0.05 m raster and
 /// the SfM raster at 0.02 m, plus the negative control (laser/0.01 with its texture blurred by
 /// σ = 2 cm, `regolith control`). Ratio of the repeatability over chance to the real-vs-real
@@ -66,7 +67,7 @@ pub const VALIDATOR_VERSION: &str = env!("CARGO_PKG_VERSION");
 /// and Harris's floors, set on the model-made seeds before, lie between the control and the best
 /// raster on all eleven. MSER's overlap criterion is lenient with a coarse render's large
 /// blobs, so its floor only catches a render that is no better than chance. The held-out test
-/// seeds 301–303 are reported in docs/validate.md and never used here.
+/// seeds are reported in docs/validate.md and never used here.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Thresholds {
