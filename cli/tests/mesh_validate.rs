@@ -11,6 +11,7 @@ use common::{certificate, regolith};
 use regolith_reader::captures::ImageKind;
 use regolith_reader::Database;
 use regolith_validator::gap::{self, GapOptions};
+use regolith_validator::mesh_entry::mesh_geometry;
 use regolith_validator::render::{Geometry, RenderOptions, Scene, View};
 use regolith_validator::validate::{campaign_light, certified_entries, entry_geometry};
 use serde_json::Value;
@@ -77,12 +78,22 @@ fn mesh_entry_renders_like_its_heightfield_and_is_certified() {
     );
     assert!(!names.iter().any(|n| n == "laser/0.01/texture"));
 
-    // 1. Renders of the mesh and of the heightfield at the real capture poses.
+    // 1. Renders of the mesh (its GLB decoded and traced as triangles) and of the heightfield
+    // at the real capture poses.
     let hf = entry_geometry(&view, "laser/0.01").unwrap();
-    let mesh = entry_geometry(&view, "laser/0.01/mesh").unwrap();
+    let mesh = mesh_geometry(&view, "laser/0.01/mesh").unwrap();
     let Geometry::Mesh(m) = &mesh else {
         panic!("a mesh entry must decode to a mesh")
     };
+    // Validation traces it as the grid it is (`render::grid_mesh`); an SfM-shaped or
+    // simplified mesh would stay a mesh.
+    assert!(
+        matches!(
+            entry_geometry(&view, "laser/0.01/mesh").unwrap(),
+            Geometry::Heightfield { .. }
+        ),
+        "the compiler's lod0 is a grid"
+    );
     assert!(m.texture.is_some(), "the compiler embeds the texture");
     let (hf_scene, mesh_scene) = (Scene::new(&hf), Scene::new(&mesh));
     let light = campaign_light(&view).unwrap();

@@ -409,11 +409,19 @@ pub fn certified_entries(view: &ReleaseView) -> Vec<String> {
 
 /// The render geometry of a terrain entry: a heightfield with its texture (or a uniform grey)
 /// as albedo, or a mesh entry's `lod0` GLB with its embedded texture
-/// ([`crate::mesh_entry::mesh_geometry`]); any other kind is [`ReaderError::WrongKind`].
+/// ([`crate::mesh_entry::mesh_geometry`]) — as a height grid when its triangles are a grid's
+/// ([`crate::render::grid_mesh`]: the same surface, traced faster); any other kind is
+/// [`ReaderError::WrongKind`].
 pub fn entry_geometry(view: &ReleaseView, entry: &str) -> Result<Geometry, ReaderError> {
     match view.entry(entry)?.kind.as_str() {
         kinds::HEIGHTFIELD => heightfield_geometry(view, entry),
-        kinds::MESH => crate::mesh_entry::mesh_geometry(view, entry),
+        kinds::MESH => Ok(match crate::mesh_entry::mesh_geometry(view, entry)? {
+            Geometry::Mesh(m) => match crate::render::grid_mesh::as_height_grid(&m) {
+                Some((grid, albedo)) => Geometry::Heightfield { grid, albedo },
+                None => Geometry::Mesh(m),
+            },
+            other => other,
+        }),
         other => Err(ReaderError::WrongKind {
             entry: entry.to_string(),
             expected: "heightfield or mesh",

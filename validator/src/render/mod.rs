@@ -44,6 +44,7 @@
 //!   the missing cells as holes, non-finite heights are holes, and a triangle with an
 //!   out-of-range vertex index is skipped.
 
+pub mod grid_mesh;
 pub mod heightfield;
 pub mod mesh;
 mod raster;
