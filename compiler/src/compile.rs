@@ -7,6 +7,12 @@
 //! stage that ran is recorded with its version and params in the release plan. Nothing time-
 //! or machine-dependent enters an object: timings go to the returned summary only.
 //!
+//! `sfm.align` runs as soon as the first laser terrain's points are merged, before its TIN, so
+//! the 18 M merged points of a full survey are freed once the TIN holds them instead of being
+//! kept through `dem.tin` and `dem.raster` for the alignment; it is recorded in the plan where
+//! it always stood and seeds its randomness by its name, so the release does not depend on
+//! when it ran.
+//!
 //! Whole-compile cache: the key is the SHA-256 of the compiler version, the options and every
 //! input file's hash; `refs/cache/<key>` remembers the release it produced, so an unchanged
 //! recompile only rehashes the inputs and re-tags the release.
@@ -237,17 +243,17 @@ fn dem_row(name: &str, r: &Raster) -> Value {
 /// points (the SfM alignment target) and its rasters (for `drape_on`).
 struct LaserTerrain {
     report: Value,
-    points: Vec<[f64; 3]>,
     rasters: Vec<Raster>,
 }
 
-/// The laser data a reconstruction terrain uses: the merged points it is aligned to, and the
-/// laser terrains' rasters (which it may drape its colours on), by terrain name.
-struct LaserData<'a> {
-    points: &'a [[f64; 3]],
-    rasters: &'a BTreeMap<String, Vec<Raster>>,
-}
+/// What is done with a laser terrain's merged points before its DEM is made (the
+/// reconstructions' alignment onto them), so they need not be held through `dem.tin` and
+/// `dem.raster`.
+type OnMerged<'f> = dyn FnMut(&mut Ctx<'_>, &[[f64; 3]]) -> Result<(), CompileError> + 'f;
 
+/// A laser terrain: its scans registered, merged, triangulated and rasterised. `on_merged`
+/// gets the merged points after `merge.clean`; they are freed once the TIN holds its vertices.
+#[allow(clippy::too_many_arguments)]
 fn laser_terrain(
     ctx: &mut Ctx<'_>,
     c: &Campaign,
@@ -256,6 +262,7 @@ fn laser_terrain(
     markers: &[NamedPoint],
     opts: &CompileOptions,
     dem_out: &mut Vec<Value>,
+    on_merged: &mut OnMerged<'_>,
 ) -> Result<LaserTerrain, CompileError> {
     let mut clouds: Vec<(String, PointCloud, ScanTiepoints)> = Vec::new();
     for &i in scans {
@@ -340,11 +347,12 @@ fn laser_terrain(
     merged.scan = Vec::new();
     ctx.record(&merge);
     ctx.lap(MergeClean::NAME);
+    on_merged(ctx, &merged.points)?;
     let dem_tin = DemTin {
         max_edge_m: LASER_MAX_EDGE_M,
     };
-    let tin = dem_tin.run(&ctx.cx, &merged)?;
-    merged.albedo = None; // the TIN's vertices carry it now
+    // The TIN's vertices carry the points and their albedo from here on.
+    let tin = dem_tin.run_owned(&mut merged)?;
     ctx.record(&dem_tin);
     ctx.lap(DemTin::NAME);
     let raster = DemRaster::new(
@@ -374,11 +382,7 @@ fn laser_terrain(
         "merge": merged.stats,
         "radiometry": merged.radiometry,
     });
-    Ok(LaserTerrain {
-        report,
-        points: merged.points,
-        rasters,
-    })
+    Ok(LaserTerrain { report, rasters })
 }
 
 /// The ground control points of every reconstruction aligned by a GCP file, by reconstruction
@@ -412,77 +416,120 @@ fn gcp_control(
     Ok(out)
 }
 
-/// A reconstruction terrain: similarity-align the SfM mesh onto the merged laser cloud
-/// (`align = "laser"`) or onto ground control points (`align = "<GCP file>"`, refined on the
-/// laser cloud when the campaign has a laser terrain), then rasterise the aligned mesh (its
-/// vertex colours as the texture) at every requested cell size.
+/// A reconstruction aligned onto the ground frame by `sfm.align`, not yet rasterised.
+struct AlignedRecon {
+    mesh: crate::ingest::types::TriMesh,
+    out: crate::stages::sfm_align::AlignOutput,
+    /// The GCP file and its control points, when the alignment used them.
+    gcps: Option<(std::path::PathBuf, Vec<gcp::MatchedGcp>)>,
+}
+
+/// Loads and aligns the reconstructions of every reconstruction terrain, terrain by terrain:
+/// similarity-align each SfM mesh onto the merged laser cloud `laser_points` (`align =
+/// "laser"`) or onto ground control points (`align = "<GCP file>"`, refined on the laser
+/// cloud when the campaign has a laser terrain). The stage is recorded in the plan by
+/// [`sfm_terrain`], where it has always stood, so the release does not depend on when the
+/// alignment ran (its randomness is seeded by its name).
+fn align_reconstructions(
+    ctx: &mut Ctx<'_>,
+    c: &Campaign,
+    terrains: &[&Terrain],
+    laser_points: &[[f64; 3]],
+    control: &BTreeMap<String, Vec<gcp::MatchedGcp>>,
+    opts: &CompileOptions,
+) -> Result<Vec<Vec<AlignedRecon>>, CompileError> {
+    let mut all = Vec::new();
+    for t in terrains {
+        let mut aligned = Vec::new();
+        let recons: &[usize] = match &t.from {
+            TerrainSource::Reconstructions(idx) => idx,
+            TerrainSource::Scans(_) => &[],
+        };
+        for &i in recons {
+            let Some(r) = c.reconstructions.get(i) else {
+                continue;
+            };
+            let gcps = match &r.align {
+                Align::Laser if laser_points.is_empty() => {
+                    return Err(StageError::new(
+                        AlignSfm::NAME,
+                        format!(
+                            "reconstruction {:?}: align = \"laser\" needs a laser terrain in the campaign",
+                            r.name
+                        ),
+                    )
+                    .into());
+                }
+                Align::Laser => None,
+                Align::Gcp(p) => Some((
+                    p.clone(),
+                    control
+                        .get(&r.name)
+                        .ok_or_else(|| {
+                            StageError::new(
+                                AlignSfm::NAME,
+                                format!("reconstruction {:?}: control points not read", r.name),
+                            )
+                        })?
+                        .clone(),
+                )),
+            };
+            let mesh = load_reconstruction(&c.root, &r.file, r.format, &opts.limits)?;
+            ctx.lap("ingest.reconstruction");
+            let points: Vec<ControlPoint> = gcps
+                .iter()
+                .flat_map(|(_, g)| g.iter())
+                .map(|g| ControlPoint {
+                    name: g.name.clone(),
+                    sfm: g.sfm,
+                    ground: g.ground,
+                })
+                .collect();
+            // The borrowed form of `Stage::run` (no copy of the merged cloud).
+            let out = AlignSfm::default()
+                .align(&ctx.cx, &mesh, laser_points, &points)
+                .map_err(|e| match &gcps {
+                    Some((p, _)) => StageError::new(
+                        e.stage,
+                        format!(
+                            "reconstruction {:?}, control points {}: {}",
+                            r.name,
+                            p.display(),
+                            e.message
+                        ),
+                    ),
+                    None => e,
+                })?;
+            ctx.lap(AlignSfm::NAME);
+            aligned.push(AlignedRecon { mesh, out, gcps });
+        }
+        all.push(aligned);
+    }
+    Ok(all)
+}
+
+/// A reconstruction terrain from its aligned reconstructions ([`align_reconstructions`]):
+/// rasterise each aligned mesh (its vertex colours as the texture) at every requested cell
+/// size, and drape it on a laser terrain's rasters when asked.
 #[allow(clippy::too_many_arguments)]
 fn sfm_terrain(
     ctx: &mut Ctx<'_>,
     c: &Campaign,
     t: &Terrain,
     recons: &[usize],
-    laser: &LaserData<'_>,
-    control: &BTreeMap<String, Vec<gcp::MatchedGcp>>,
+    aligned: Vec<AlignedRecon>,
+    laser_rasters: &BTreeMap<String, Vec<Raster>>,
     opts: &CompileOptions,
     dem_out: &mut Vec<Value>,
 ) -> Result<Value, CompileError> {
     let mut reports = serde_json::Map::new();
-    for &i in recons {
-        let Some(r) = c.reconstructions.get(i) else {
-            continue;
-        };
-        let gcps = match &r.align {
-            Align::Laser if laser.points.is_empty() => {
-                return Err(StageError::new(
-                    AlignSfm::NAME,
-                    format!(
-                        "reconstruction {:?}: align = \"laser\" needs a laser terrain in the campaign",
-                        r.name
-                    ),
-                )
-                .into());
-            }
-            Align::Laser => None,
-            Align::Gcp(p) => Some((
-                p,
-                control.get(&r.name).ok_or_else(|| {
-                    StageError::new(
-                        AlignSfm::NAME,
-                        format!("reconstruction {:?}: control points not read", r.name),
-                    )
-                })?,
-            )),
-        };
-        let mesh = load_reconstruction(&c.root, &r.file, r.format, &opts.limits)?;
-        ctx.lap("ingest.reconstruction");
-        let align = AlignSfm::default();
-        let control: Vec<ControlPoint> = gcps
-            .iter()
-            .flat_map(|(_, g)| g.iter())
-            .map(|g| ControlPoint {
-                name: g.name.clone(),
-                sfm: g.sfm,
-                ground: g.ground,
-            })
-            .collect();
-        // The borrowed form of `Stage::run` (no copy of the merged cloud).
-        let out = align
-            .align(&ctx.cx, &mesh, laser.points, &control)
-            .map_err(|e| match &gcps {
-                Some((p, _)) => StageError::new(
-                    e.stage,
-                    format!(
-                        "reconstruction {:?}, control points {}: {}",
-                        r.name,
-                        p.display(),
-                        e.message
-                    ),
-                ),
-                None => e,
-            })?;
-        ctx.record(&align);
-        ctx.lap(AlignSfm::NAME);
+    let names = recons
+        .iter()
+        .filter_map(|&i| c.reconstructions.get(i))
+        .map(|r| &r.name);
+    for (name, a) in names.zip(aligned) {
+        let AlignedRecon { mesh, out, gcps } = a;
+        ctx.record(&AlignSfm::default());
         // Vertex colours are read as linear albedo (grey / 255, Rec. 601 luma for RGB), the
         // convention of the laser texture (SPEC §5.2); no sRGB decoding.
         let colour: Option<Vec<f32>> = mesh.colors.as_ref().map(|cs| {
@@ -500,7 +547,7 @@ fn sfm_terrain(
                 .map(|p| out.similarity.apply(*p))
                 .collect(),
             albedo: colour,
-            triangles: mesh.triangles.clone(),
+            triangles: mesh.triangles,
             duplicates_merged: 0,
             max_edge_m: None,
         };
@@ -521,7 +568,7 @@ fn sfm_terrain(
             Some(dem_out),
         )?;
         if let Some(target) = &t.drape_on {
-            drape(ctx, t, target, &tin, laser.rasters, opts)?;
+            drape(ctx, t, target, &tin, laser_rasters, opts)?;
         }
         ctx.lap("encode.terrain");
         let mut row = json!({
@@ -544,7 +591,7 @@ fn sfm_terrain(
                 .map(|g| json!({"name": g.name, "sfm": g.sfm, "ground_m": g.ground, "ground_from": g.ground_from.as_str()}))
                 .collect::<Vec<_>>());
         }
-        reports.insert(r.name.clone(), row);
+        reports.insert(name.clone(), row);
     }
     Ok(Value::Object(reports))
 }
@@ -919,13 +966,13 @@ fn compile_unchecked(
     let mut registration = Vec::new();
     let mut dem = Vec::new();
     let n_terrains = c.terrains.len().max(1) as f64;
-    let mut laser_points: Vec<[f64; 3]> = Vec::new();
     // Every laser terrain's rasters, by name (encoded below; reconstructions drape on them).
     let mut laser_rasters: BTreeMap<String, Vec<Raster>> = BTreeMap::new();
     let (lasers, recons): (Vec<&Terrain>, Vec<&Terrain>) = c
         .terrains
         .iter()
         .partition(|t| matches!(t.from, TerrainSource::Scans(_)));
+    let mut aligned: Option<Vec<Vec<AlignedRecon>>> = None;
     for (k, t) in lasers.iter().enumerate() {
         progress(
             &format!("terrain {}", t.name),
@@ -934,13 +981,33 @@ fn compile_unchecked(
         let TerrainSource::Scans(idx) = &t.from else {
             continue;
         };
-        let out = laser_terrain(&mut ctx, c, t, idx, &markers, opts, &mut dem)?;
+        // The reconstructions are aligned onto the first laser terrain with points, as soon
+        // as its points are merged, so the points need not outlive its TIN.
+        let mut on_merged = |ctx: &mut Ctx<'_>, points: &[[f64; 3]]| {
+            if aligned.is_none() && !points.is_empty() {
+                aligned = Some(align_reconstructions(
+                    ctx, c, &recons, points, &control, opts,
+                )?);
+            }
+            Ok(())
+        };
+        let out = laser_terrain(
+            &mut ctx,
+            c,
+            t,
+            idx,
+            &markers,
+            opts,
+            &mut dem,
+            &mut on_merged,
+        )?;
         registration.push(out.report);
         laser_rasters.insert(t.name.clone(), out.rasters);
-        if laser_points.is_empty() {
-            laser_points = out.points;
-        }
     }
+    let aligned = match aligned {
+        Some(a) => a,
+        None => align_reconstructions(&mut ctx, c, &recons, &[], &control, opts)?,
+    };
     // The laser rasters are encoded (pure work; the finest grid's LOD chain holds one thread
     // for seconds) while this thread aligns the reconstructions and builds the captures; the
     // laser entries are then stored and put where a sequential compile puts them, before the
@@ -961,7 +1028,7 @@ fn compile_unchecked(
             *encoded = Some(all);
         });
         let mut alignment = serde_json::Map::new();
-        for (k, t) in recons.iter().enumerate() {
+        for (k, (t, a)) in recons.iter().zip(aligned).enumerate() {
             progress(
                 &format!("terrain {}", t.name),
                 0.1 + 0.7 * (lasers.len() + k) as f64 / n_terrains,
@@ -969,12 +1036,8 @@ fn compile_unchecked(
             let TerrainSource::Reconstructions(idx) = &t.from else {
                 continue;
             };
-            let laser = LaserData {
-                points: &laser_points,
-                rasters: &laser_rasters,
-            };
             if let Value::Object(m) =
-                sfm_terrain(&mut ctx, c, t, idx, &laser, &control, opts, &mut dem)?
+                sfm_terrain(&mut ctx, c, t, idx, a, &laser_rasters, opts, &mut dem)?
             {
                 alignment.extend(m);
             }
@@ -1001,7 +1064,6 @@ fn compile_unchecked(
         tail.rotate_right(added);
     }
     ctx.lap("encode.terrain");
-    drop(laser_points);
     drop(laser_rasters);
     let alignment_full = Value::Object(alignment);
     let alignment: Value = alignment_full
