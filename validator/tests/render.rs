@@ -616,6 +616,100 @@ fn tracer_hits_planes_from_above_and_below_and_respects_holes() {
     is_sync(&holed);
 }
 
+/// The nearest hit of a ray with every triangle of `g` (quads split NW–SE, holes removed),
+/// by testing them all (Möller–Trumbore): what the march through the quadtree must find.
+fn brute_force_t(g: &HeightGrid, o: [f64; 3], d: [f64; 3], t_max: f64) -> Option<f64> {
+    let p = |c: usize, r: usize| -> [f64; 3] {
+        [
+            g.origin_m[0] + c as f64 * g.cell_m,
+            g.origin_m[1] - r as f64 * g.cell_m,
+            f64::from(g.z[r * g.width + c]),
+        ]
+    };
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut best: Option<f64> = None;
+    for r in 0..g.height - 1 {
+        for c in 0..g.width - 1 {
+            let (nw, ne, sw, se) = (p(c, r), p(c + 1, r), p(c, r + 1), p(c + 1, r + 1));
+            for tri in [[nw, ne, se], [nw, se, sw]] {
+                if tri.iter().any(|v| !v[2].is_finite()) {
+                    continue;
+                }
+                let (e1, e2) = (sub(tri[1], tri[0]), sub(tri[2], tri[0]));
+                let q = cross(d, e2);
+                let det = dot(e1, q);
+                if det.abs() < 1e-15 {
+                    continue;
+                }
+                let s = sub(o, tri[0]);
+                let u = dot(s, q) / det;
+                let rr = cross(s, e1);
+                let v = dot(d, rr) / det;
+                let t = dot(e2, rr) / det;
+                if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t >= 0.0 && t <= t_max {
+                    best = Some(best.map_or(t, |b: f64| b.min(t)));
+                }
+            }
+        }
+    }
+    best
+}
+
+#[test]
+fn tracer_finds_the_nearest_triangle_of_a_rough_terrain_with_holes() {
+    // Rough relief with overhang-free spikes and pits, and a few holes: rays from a camera
+    // above (steep and grazing), from below and nearly horizontal, each checked against every
+    // triangle. A march that skips a node it should enter misses or finds a farther hit.
+    let mut g = grid(37, 29, 0.05, |x, y| {
+        0.3 * (x * 7.0).sin() * (y * 5.0).cos() + 0.15 * ((x + 2.0 * y) * 23.0).sin()
+    });
+    for k in [40usize, 333, 334, 600, 901] {
+        g.z[k] = f32::NAN;
+    }
+    let tracer = HeightfieldTracer::new(&g);
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut hits, mut rays) = (0, 0);
+    for _ in 0..3000 {
+        let o = [
+            -0.5 + 2.8 * uniform(),
+            0.5 - 2.4 * uniform(),
+            -1.0 + 3.0 * uniform(),
+        ];
+        let target = [1.8 * uniform(), -1.4 * uniform(), -0.4 + 0.8 * uniform()];
+        let d = [target[0] - o[0], target[1] - o[1], target[2] - o[2]];
+        let t_max = 0.5 + 1.5 * uniform();
+        let want = brute_force_t(&g, o, d, t_max);
+        let got = tracer.trace(o, d, t_max).map(|h| h.t);
+        rays += 1;
+        match (want, got) {
+            (Some(a), Some(b)) => {
+                hits += 1;
+                assert!(
+                    (a - b).abs() < 1e-9,
+                    "ray {o:?} {d:?}: nearest t {a}, march {b}"
+                );
+            }
+            (None, None) => {}
+            _ => panic!("ray {o:?} {d:?}: brute force {want:?}, march {got:?}"),
+        }
+    }
+    assert!(hits > rays / 4 && hits < rays, "{hits} of {rays} rays hit");
+}
+
 /// Mean and standard deviation of the radiance over the pixels that see terrain.
 fn mean_std(r: &Rendered) -> (f64, f64) {
     let v: Vec<f64> = r
