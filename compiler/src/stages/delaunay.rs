@@ -53,11 +53,16 @@ impl HasPosition for Vertex {
     }
 }
 
-/// spade's triangulation of `vertices[range]`, counter-clockwise triangles with global indices.
+/// spade's triangulation of `vertices[range]`: each counter-clockwise triangle, with global
+/// indices, handed with its corners' (x, y) to `keep`, which files it (or drops it). The
+/// corners come from spade's own vertex records, which the face walk reads anyway for the
+/// indices: looking them up again in `vertices` in spade's face order is a random access a
+/// corner, which made filtering the triangles a seventh of `dem.tin`.
 fn spade_triangles(
     vertices: &[[f64; 3]],
     range: std::ops::Range<usize>,
-) -> Result<Vec<[u32; 3]>, String> {
+    mut keep: impl FnMut([u32; 3], [[f64; 2]; 3]),
+) -> Result<(), String> {
     let start = range.start;
     let part = vertices.get(range).unwrap_or(&[]);
     let spade_vertices: Vec<Vertex> = part
@@ -70,14 +75,15 @@ fn spade_triangles(
         .collect();
     let dt: DelaunayTriangulation<Vertex> = DelaunayTriangulation::bulk_load(spade_vertices)
         .map_err(|e| format!("triangulation failed: {e:?}"))?;
-    Ok(dt
-        .inner_faces()
-        .map(|f| f.vertices().map(|v| v.data().index))
-        .collect())
+    for f in dt.inner_faces() {
+        let v = f.vertices().map(|v| *v.data());
+        keep(v.map(|v| v.index), v.map(|v| [v.pos.x, v.pos.y]));
+    }
+    Ok(())
 }
 
 /// Circumcentre and squared radius of a triangle (None when degenerate).
-fn circumcircle(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> Option<([f64; 2], f64)> {
+fn circumcircle(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> Option<([f64; 2], f64)> {
     let (bx, by) = (b[0] - a[0], b[1] - a[1]);
     let (cx, cy) = (c[0] - a[0], c[1] - a[1]);
     let d = 2.0 * (bx * cy - by * cx);
@@ -212,7 +218,12 @@ struct StripTriangles {
 
 /// The longest horizontal edge of a triangle (the hole rule of `dem.tin` and `dem.raster`).
 pub(super) fn longest_edge(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    let d = |p: [f64; 3], q: [f64; 3]| (p[0] - q[0]).hypot(p[1] - q[1]);
+    longest_edge_xy([a[0], a[1]], [b[0], b[1]], [c[0], c[1]])
+}
+
+/// [`longest_edge`] of corners given by (x, y).
+fn longest_edge_xy(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    let d = |p: [f64; 2], q: [f64; 2]| (p[0] - q[0]).hypot(p[1] - q[1]);
     d(a, b).max(d(b, c)).max(d(c, a))
 }
 
@@ -231,14 +242,17 @@ fn triangulate_in_strips(
     strip_points: usize,
 ) -> Result<Vec<[u32; 3]>, String> {
     let n = vertices.len();
-    let corner = |i: u32| vertices.get(i as usize).copied().unwrap_or([0.0; 3]);
-    let short = |t: &[u32; 3]| {
-        let [a, b, c] = t.map(corner);
-        longest_edge(a, b, c) <= max_edge
+    let corner = |i: u32| {
+        let p = vertices.get(i as usize).copied().unwrap_or([0.0; 3]);
+        [p[0], p[1]]
     };
     if n <= strip_points || !max_edge.is_finite() {
-        let mut tris = spade_triangles(vertices, 0..n)?;
-        tris.retain(short);
+        let mut tris = Vec::new();
+        spade_triangles(vertices, 0..n, |t, [a, b, c]| {
+            if longest_edge_xy(a, b, c) <= max_edge {
+                tris.push(t);
+            }
+        })?;
         return Ok(tris);
     }
     let x = |i: usize| vertices.get(i).map_or(0.0, |p| p[0]);
@@ -273,23 +287,24 @@ fn triangulate_in_strips(
                 x(lo - 1)
             };
             let right = if hi == n { f64::INFINITY } else { x(hi) };
-            let mut kept = spade_triangles(vertices, lo..hi)?;
-            let mut unproven = Vec::new();
-            kept.retain(|&t| {
-                let [a, b, c] = t.map(corner);
+            // A triangulation of m points has fewer than 2m faces: one allocation, as the
+            // list of all faces had, not a growing one with its doubling peaks.
+            let (mut kept, mut unproven) = (Vec::with_capacity(2 * (hi - lo)), Vec::new());
+            spade_triangles(vertices, lo..hi, |t, [a, b, c]| {
                 let cx = (a[0] + b[0] + c[0]) / 3.0;
-                if cx < core0 || cx >= core1 || longest_edge(a, b, c) > max_edge {
-                    return false;
+                if cx < core0 || cx >= core1 || longest_edge_xy(a, b, c) > max_edge {
+                    return;
                 }
                 let proven = circumcircle(a, b, c).is_some_and(|(centre, r2)| {
                     let r = r2.sqrt() * (1.0 + 1e-9);
                     centre[0] - r > left && centre[0] + r < right
                 });
-                if !proven {
+                if proven {
+                    kept.push(t);
+                } else {
                     unproven.push(t);
                 }
-                proven
-            });
+            })?;
             kept.shrink_to_fit();
             Ok(StripTriangles { kept, unproven })
         })
@@ -382,7 +397,9 @@ mod tests {
         }
         // An infinite limit keeps every triangle, including the hull's slivers.
         let all = triangulate_in_strips(&pts, f64::INFINITY, 4_000).unwrap();
-        assert_eq!(all, spade_triangles(&pts, 0..pts.len()).unwrap());
+        let mut spade = Vec::new();
+        spade_triangles(&pts, 0..pts.len(), |t, _| spade.push(t)).unwrap();
+        assert_eq!(all, spade);
     }
 
     #[test]
