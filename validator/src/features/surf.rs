@@ -297,6 +297,8 @@ fn interpolate(n: &[[f32; 9]; 3]) -> Option<(f32, f32, f32)> {
 const ORI_RADIUS: i32 = 6;
 const ORI_WIN: i32 = 60;
 const ORI_SEARCH_INC: usize = 5;
+/// Windows searched: one every [`ORI_SEARCH_INC`] degrees round the circle.
+const ORI_WINDOWS: usize = 360 / ORI_SEARCH_INC;
 const ORI_SIGMA: f64 = 2.5;
 const DESC_SIGMA: f64 = 3.3;
 const PATCH: usize = 20;
@@ -344,19 +346,25 @@ fn orientation(sum: &Integral, kp: &Keypoint) -> Option<f32> {
     if samples.is_empty() {
         return None;
     }
-    let (mut best, mut bx, mut by) = (0.0f32, 0.0f32, 0.0f32);
-    for i in (0..360i32).step_by(ORI_SEARCH_INC) {
-        let (mut sx, mut sy) = (0.0f32, 0.0f32);
-        for &(vx, vy, a) in &samples {
-            let d = (a - i).abs();
-            if !(ORI_WIN / 2..=360 - ORI_WIN / 2).contains(&d) {
-                sx += vx;
-                sy += vy;
-            }
+    // Every window's sums at once, sample by sample: each window still adds its samples in
+    // their order (the sums are those of one window at a time, bit for bit: a window a sample
+    // is not in adds +0.0, and a sum that starts at +0.0 never becomes −0.0), but the loop over
+    // the windows has no branch and no dependency from one window to the next.
+    let mut sx = [0.0f32; ORI_WINDOWS];
+    let mut sy = [0.0f32; ORI_WINDOWS];
+    for &(vx, vy, a) in &samples {
+        for (k, (x, y)) in sx.iter_mut().zip(sy.iter_mut()).enumerate() {
+            let d = (a - (k * ORI_SEARCH_INC) as i32).abs();
+            let inside = !(ORI_WIN / 2..=360 - ORI_WIN / 2).contains(&d);
+            *x += if inside { vx } else { 0.0 };
+            *y += if inside { vy } else { 0.0 };
         }
-        let m = sx * sx + sy * sy;
+    }
+    let (mut best, mut bx, mut by) = (0.0f32, 0.0f32, 0.0f32);
+    for (&x, &y) in sx.iter().zip(&sy) {
+        let m = x * x + y * y;
         if m > best {
-            (best, bx, by) = (m, sx, sy);
+            (best, bx, by) = (m, x, y);
         }
     }
     let mut dir = (-by).atan2(bx).to_degrees();
