@@ -31,7 +31,9 @@ use serde_json::{json, Value};
 
 use crate::encode::{heightfield, png, terrain, EncodeError};
 use crate::error::IngestError;
-use crate::ingest::campaign::{Align, Campaign, Registration, Terrain, TerrainSource, Texture};
+use crate::ingest::campaign::{
+    Align, Campaign, Registration, Scan, Terrain, TerrainSource, Texture,
+};
 use crate::ingest::types::{NamedPoint, PointCloud};
 use crate::ingest::{gcp, markers, vicon_csv};
 use crate::inventory::{load_reconstruction, load_scan, load_sop, load_tiepoints};
@@ -264,9 +266,10 @@ fn laser_terrain(
     dem_out: &mut Vec<Value>,
     on_merged: &mut OnMerged<'_>,
 ) -> Result<LaserTerrain, CompileError> {
-    let mut clouds: Vec<(String, PointCloud, ScanTiepoints)> = Vec::new();
-    for &i in scans {
-        let Some(s) = c.scans.get(i) else { continue };
+    // The scans are read side by side (a reader of a binary format is one thread, and one
+    // scan's file I/O overlaps another's parsing); in scan order, the first failing scan's
+    // error is the one a scan-by-scan read would have stopped at.
+    let load = |s: &Scan| -> Result<(String, PointCloud, ScanTiepoints), CompileError> {
         let cloud = load_scan(&c.root, s, &opts.limits)?;
         let tp = match &s.registration {
             Registration::Tiepoints(p) => ScanTiepoints {
@@ -280,8 +283,15 @@ fn laser_terrain(
                 sop: Some(load_sop(&c.root, s, p, &opts.limits)?),
             },
         };
-        clouds.push((s.name.clone(), cloud, tp));
-    }
+        Ok((s.name.clone(), cloud, tp))
+    };
+    let clouds: Vec<(String, PointCloud, ScanTiepoints)> = scans
+        .par_iter()
+        .filter_map(|&i| c.scans.get(i))
+        .map(load)
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect::<Result<_, _>>()?;
     ctx.lap("ingest.scans");
     let reg = RegisterTiepoints::default();
     let input = TiepointInput {
