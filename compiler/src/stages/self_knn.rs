@@ -214,36 +214,56 @@ pub fn map_self_knn<T: Send + Clone + Default>(
         return None;
     }
     let g = ColumnGrid::new(points)?;
-    let k = k.min(points.len());
-    // Grid-order results (cell by cell); `None` = left to the kd-tree.
-    let cells: Vec<usize> = (0..g.nx * g.ny).collect();
-    let found: Vec<Option<T>> = cells
-        .par_chunks(CHUNK)
-        .flat_map_iter(|chunk| {
+    let n = points.len();
+    let k = k.min(n);
+    // Results in grid order (cell by cell), written in place: each task of CHUNK cells owns
+    // the run of points those cells hold, so no task's list is collected and copied (a
+    // survey's results were held twice that way, as `Option`s twice their size).
+    // `settled[pos]` false: left to the next pass.
+    let mut vals = vec![T::default(); n];
+    let mut settled = vec![false; n];
+    {
+        let cells = g.nx * g.ny;
+        let mut tasks = Vec::with_capacity(cells.div_ceil(CHUNK));
+        let (mut v_rest, mut s_rest) = (vals.as_mut_slice(), settled.as_mut_slice());
+        let mut at = 0usize;
+        for c0 in (0..cells).step_by(CHUNK) {
+            let c1 = (c0 + CHUNK).min(cells);
+            let end = g.starts.get(c1).copied().unwrap_or(0) as usize;
+            let len = end.saturating_sub(at).min(v_rest.len());
+            let (v, vr) = std::mem::take(&mut v_rest).split_at_mut(len);
+            let (s, sr) = std::mem::take(&mut s_rest).split_at_mut(len);
+            (v_rest, s_rest) = (vr, sr);
+            tasks.push((c0..c1, v, s));
+            at += len;
+        }
+        tasks.into_par_iter().for_each(|(cells, v, s)| {
             let mut out = Vec::with_capacity(k + 1);
-            let mut found = Vec::new();
-            for &c in chunk {
+            let mut slots = v.iter_mut().zip(s.iter_mut());
+            for c in cells {
                 let (cx, cy) = (c % g.nx, c / g.nx);
                 for q in g.run(cy, cx, cx) {
-                    found.push(g.knn(q, cx, cy, k, FIRST_RINGS, &mut out).then(|| f(&out)));
+                    let Some((val, ok)) = slots.next() else {
+                        return;
+                    };
+                    if g.knn(q, cx, cy, k, FIRST_RINGS, &mut out) {
+                        (*val, *ok) = (f(&out), true);
+                    }
                 }
             }
-            found
-        })
-        .collect();
-    let mut result = vec![T::default(); points.len()];
+        });
+    }
+    let mut result = vec![T::default(); n];
     // Grid positions of the queries the first pass left.
     let mut rest: Vec<usize> = Vec::new();
-    for (pos, (&id, r)) in g.ids.iter().zip(found).enumerate() {
-        match r {
-            Some(v) => {
-                if let Some(slot) = result.get_mut(id as usize) {
-                    *slot = v;
-                }
-            }
-            None => rest.push(pos),
+    for (pos, ((&id, v), &ok)) in g.ids.iter().zip(vals).zip(&settled).enumerate() {
+        if !ok {
+            rest.push(pos);
+        } else if let Some(slot) = result.get_mut(id as usize) {
+            *slot = v;
         }
     }
+    drop(settled);
     let cell_of = |q: &[f64; 3]| {
         let c = |v: f64, o: f64, n: usize| (((v - o) / g.cell) as usize).min(n - 1);
         (c(q[0], g.x0, g.nx), c(q[1], g.y0, g.ny))
