@@ -268,6 +268,11 @@ pub enum CorpusAction {
         /// Override a hidden effect's parameter, e.g. `vignetting.strength=0.3` (repeatable).
         #[arg(long, value_name = "E.name=value")]
         effect_param: Vec<String>,
+        /// An auto-exposing camera: each capture location's exposure gain is multiplied by
+        /// `e^u`, `|u|` drawn in `[SPREAD/2, SPREAD]` per location, brighter and darker by
+        /// turns (truth/hidden.json `capture_exposure`). 0: one exposure for every capture.
+        #[arg(long, value_name = "SPREAD", default_value_t = 0.0)]
+        auto_exposure: f64,
         /// Output folder (created; must be empty or absent).
         #[arg(long)]
         out: PathBuf,

@@ -35,6 +35,7 @@ fn every_malformed_input_gives_exit_2_naming_file_and_place() {
             full: false,
             captures: None,
             hidden: vec![],
+            auto_exposure: 0.0,
         },
         &good,
         &regolith_model_captures::ModelCaptures,

@@ -150,6 +150,7 @@ fn sfm_aligns_from_ground_control_points_with_and_without_scans() {
             full: false,
             captures: None,
             hidden: vec![],
+            auto_exposure: 0.0,
         },
         &camp,
         &regolith_model_captures::ModelCaptures,

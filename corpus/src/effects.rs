@@ -110,9 +110,31 @@ fn check_name(name: &str) -> Result<&'static [ParamRange], CorpusError> {
 pub struct Hidden {
     /// The effects, in the order requested.
     pub effects: Vec<Effect>,
+    /// Spread of an auto-exposing camera (0: the same exposure at every capture): each capture
+    /// location's exposure gain is the hidden exposure's (or 1) times `e^u`
+    /// ([`Hidden::capture_gain`]).
+    pub auto_exposure: f64,
 }
 
 impl Hidden {
+    /// The exposure gain factor `e^u` of the capture location drawn `index`-th (1 without an
+    /// auto-exposure): `|u|` uniform in `[spread/2, spread]` (stage RNG
+    /// `hidden.auto-exposure.<index>`), its sign alternating from one location to the next
+    /// from a sign drawn for the campaign (stage RNG `hidden.auto-exposure`) — a camera that
+    /// exposes each view for its own brightness, brighter and darker by turns, so that every
+    /// two neighbouring locations differ by at least the spread.
+    pub fn capture_gain(&self, seed: u64, index: usize) -> f64 {
+        let s = self.auto_exposure;
+        if s <= 0.0 || !s.is_finite() {
+            return 1.0;
+        }
+        let first: bool = stage_rng(seed, "hidden.auto-exposure").gen();
+        let magnitude =
+            stage_rng(seed, &format!("hidden.auto-exposure.{index}")).gen_range(0.5 * s..=s);
+        let up = first == index.is_multiple_of(2);
+        (if up { magnitude } else { -magnitude }).exp()
+    }
+
     /// The true camera: `base` with every `distortion` added to its `k1`, `k2`.
     pub fn camera(&self, base: &CameraModel) -> CameraModel {
         let mut cam = base.clone();
@@ -206,7 +228,10 @@ pub fn resolve(specs: &[HiddenSpec], seed: u64) -> Result<Hidden, CorpusError> {
         }
         effects.push(drawn.with_params(&values));
     }
-    Ok(Hidden { effects })
+    Ok(Hidden {
+        effects,
+        auto_exposure: 0.0,
+    })
 }
 
 /// The baseline noise of every real image.
@@ -338,6 +363,7 @@ mod tests {
                 gain: 0.3,
                 read_sigma: 2.0,
             }],
+            ..Hidden::default()
         };
         assert_eq!(real_model(&noisy).len(), 1);
     }

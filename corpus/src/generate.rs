@@ -39,6 +39,9 @@ pub struct GenerateOptions {
     pub captures: Option<usize>,
     /// Hidden effects and their parameter overrides.
     pub hidden: Vec<HiddenSpec>,
+    /// An auto-exposing camera's spread (0: one exposure for every capture; see
+    /// [`effects::Hidden::auto_exposure`]).
+    pub auto_exposure: f64,
 }
 
 /// What was generated.
@@ -79,7 +82,8 @@ pub fn generate(
         elevation_deg: round(lrng.gen_range(45.0..70.0)),
         ambient: (lrng.gen_range(0.25..0.4f64) * 100.0).round() / 100.0,
     };
-    let hidden = effects::resolve(&opts.hidden, seed)?;
+    let mut hidden = effects::resolve(&opts.hidden, seed)?;
+    hidden.auto_exposure = opts.auto_exposure;
     // A hidden `shadows` is cast by the lab light itself: the lab light (and so `[lighting]`)
     // takes its direction (see `effects`).
     if let Some((azimuth_deg, elevation_deg)) = hidden.shadow_light() {
@@ -217,7 +221,14 @@ pub fn generate(
     };
     sink.write("campaign.toml", campaign::campaign_toml(&plan).as_bytes())?;
     sink.write("README.md", campaign::README.as_bytes())?;
-    let hidden_truth = truth::HiddenTruth::new(&hidden, &effects::real_model(&hidden));
+    let mut hidden_truth = truth::HiddenTruth::new(&hidden, &effects::real_model(&hidden));
+    if hidden.auto_exposure > 0.0 {
+        hidden_truth.capture_exposure = captures
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.name.clone(), hidden.capture_gain(seed, i)))
+            .collect();
+    }
     sink.write_json("truth/renderer.json", &renderer.info())?;
     sink.write_json("truth/lab.json", &world)?;
     let cams = truth::CamerasTruth::new(&head, &hidden, &texture_cam);
@@ -340,7 +351,8 @@ fn write_captures(
             vicon::nexus_csv("Rig", &names, &tracks, first).as_bytes(),
         )?;
         let noise_seed = stage_hash(seed, "captures.noise", i as u64);
-        shots.extend(navcam::shots(head, cap, hidden, noise_seed));
+        let gain = hidden.capture_gain(seed, i);
+        shots.extend(navcam::shots(head, cap, hidden, noise_seed, gain));
     }
     let frames = renderer.frames(scene, &shots, &|f| progress("captures", f))?;
     let mut out = Vec::new();

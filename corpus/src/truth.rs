@@ -190,6 +190,10 @@ pub struct HiddenTruth {
     pub real_image_model: Vec<Effect>,
     /// How each effect reaches the data.
     pub notes: BTreeMap<&'static str, &'static str>,
+    /// An auto-exposing camera's gain factor per capture location, on top of the hidden
+    /// exposure (absent when every capture has the same exposure).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub capture_exposure: BTreeMap<String, f64>,
 }
 
 impl HiddenTruth {
@@ -197,6 +201,9 @@ impl HiddenTruth {
     pub fn new(hidden: &Hidden, real: &[Effect]) -> HiddenTruth {
         let mut notes = BTreeMap::new();
         notes.insert("image effects", "vignetting, blur, exposure, noise, gamma: applied to every captures/*.png by the capture renderer of truth/renderer.json (baseline noise gain 0.05, read 0.8 DN unless noise is hidden)");
+        if hidden.auto_exposure > 0.0 {
+            notes.insert("capture_exposure", "an auto-exposing camera: each capture location's radiance (so its exposure gain) times its factor here, on top of the hidden exposure");
+        }
         notes.insert("shadows", "captures rendered with cast shadows of the true light (truth/lighting.json); campaign.toml [lighting] records it 2-4 deg off in azimuth and 1-2 deg in elevation, as surveyed; the validator-model renderer draws cast shadows only then, a physical renderer always (the lamp is low then)");
         notes.insert(
             "distortion",
@@ -208,6 +215,7 @@ impl HiddenTruth {
             effects: hidden.effects.clone(),
             real_image_model: real.to_vec(),
             notes,
+            capture_exposure: BTreeMap::new(),
         }
     }
 }

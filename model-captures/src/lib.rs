@@ -60,7 +60,7 @@ impl CaptureRenderer for ModelCaptures {
         let mut out = Vec::with_capacity(shots.len());
         for (i, shot) in shots.iter().enumerate() {
             progress(i as f64 / shots.len().max(1) as f64);
-            let r = render_scene.render(
+            let mut r = render_scene.render(
                 &scene.light,
                 &View {
                     camera: shot.camera.clone(),
@@ -68,6 +68,10 @@ impl CaptureRenderer for ModelCaptures {
                 },
                 &opts,
             );
+            if shot.exposure_gain != 1.0 {
+                let g = shot.exposure_gain as f32;
+                r.radiance.iter_mut().for_each(|x| *x *= g);
+            }
             let frame = |k: u64| {
                 quantise_u8(&model.image(
                     &r.radiance,

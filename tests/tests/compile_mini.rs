@@ -25,6 +25,7 @@ fn mini(dir: &Path, seed: u64) {
         full: false,
         captures: None,
         hidden: vec![],
+        auto_exposure: 0.0,
     };
     generate(
         &opts,

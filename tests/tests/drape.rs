@@ -33,6 +33,7 @@ fn sfm_colours_drape_on_the_laser_geometry() {
             full: false,
             captures: None,
             hidden: vec![],
+            auto_exposure: 0.0,
         },
         &camp,
         &regolith_model_captures::ModelCaptures,

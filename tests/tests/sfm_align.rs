@@ -117,6 +117,7 @@ fn aligns_the_mini_sfm_mesh_onto_the_laser_scans() {
         full: false,
         captures: None,
         hidden: vec![],
+        auto_exposure: 0.0,
     };
     generate(
         &opts,
@@ -209,6 +210,7 @@ fn laser_only_scale_within_half_a_percent_on_more_terrains() {
             full: false,
             captures: None,
             hidden: vec![],
+            auto_exposure: 0.0,
         };
         generate(
             &opts,

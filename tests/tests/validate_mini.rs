@@ -20,6 +20,7 @@ fn certificates_are_bound_stored_and_verified() {
             full: false,
             captures: None,
             hidden: vec![],
+            auto_exposure: 0.0,
         },
         &camp,
         &regolith_model_captures::ModelCaptures,

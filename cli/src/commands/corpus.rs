@@ -25,6 +25,7 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         captures,
         hidden_effect,
         effect_param,
+        auto_exposure,
         out,
         renderer,
         renders,
@@ -32,6 +33,11 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         spp,
         bad_inputs,
     } = action;
+    if !(auto_exposure.is_finite() && *auto_exposure >= 0.0) {
+        anyhow::bail!(
+            "--auto-exposure takes a spread of 0 or more (a log gain, e.g. 0.2), not {auto_exposure}"
+        );
+    }
     let out = &crate::paths::absolute(out)?;
     let bad_inputs = &crate::paths::absolute_opt(bad_inputs.as_deref())?;
     let mut hidden = match hidden_effect {
@@ -50,6 +56,7 @@ pub fn run(action: &CorpusAction, json: bool) -> anyhow::Result<Outcome> {
         full: *full,
         captures: captures.map(|n| n as usize),
         hidden,
+        auto_exposure: *auto_exposure,
     };
     let renderer: Box<dyn CaptureRenderer> = match renderer {
         RendererArg::Model => Box::new(ModelCaptures),

@@ -43,6 +43,11 @@ pub struct Shot {
     pub camera_index: usize,
     /// Seed of the temporal noise of frame a; frame b uses `noise_seed + 1`.
     pub noise_seed: u64,
+    /// The capture's exposure gain factor on top of the hidden exposure (an auto-exposing
+    /// camera, [`crate::effects::Hidden::capture_gain`]; 1 otherwise): renderers scale the
+    /// shot's radiance by it before the camera, which is the same as scaling the exposure's
+    /// gain (every optical effect before the exposure is linear in radiance).
+    pub exposure_gain: f64,
 }
 
 /// Everything a renderer may look at besides the shots.

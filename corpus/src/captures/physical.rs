@@ -185,6 +185,11 @@ impl CaptureRenderer for PhysicalCaptures {
                     found: format!("{w}x{h}"),
                 });
             }
+            let mut radiance = radiance;
+            if shot.exposure_gain != 1.0 {
+                let g = shot.exposure_gain as f32;
+                radiance.iter_mut().for_each(|r| *r *= g);
+            }
             let pinhole = PinholeImage {
                 width: canvas.width,
                 height: canvas.height,

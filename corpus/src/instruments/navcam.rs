@@ -185,12 +185,14 @@ fn pose_seeing(
 }
 
 /// The two shots (left, right) of one capture: true cameras and poses; `noise_seed` is the
-/// capture's, the left camera's frames use `+0`, `+1` and the right's `+4`, `+5`.
+/// capture's, the left camera's frames use `+0`, `+1` and the right's `+4`, `+5`;
+/// `exposure_gain` the capture's exposure factor ([`Hidden::capture_gain`]).
 pub fn shots(
     head: &StereoHead,
     capture: &CapturePose,
     hidden: &Hidden,
     noise_seed: u64,
+    exposure_gain: f64,
 ) -> [Shot; 2] {
     let left_pose = hidden.rig_pose(capture.ground_from_rig);
     let right_pose = left_pose.compose(&head.right_from_left.inverse());
@@ -201,6 +203,7 @@ pub fn shots(
         ground_from_camera: pose,
         camera_index: i,
         noise_seed: noise_seed.wrapping_add(4 * i as u64),
+        exposure_gain,
     };
     [
         shot(0, "left", &head.left, left_pose),

@@ -28,6 +28,7 @@ pub fn mini(seed: u64, hidden: &[(&str, &[(&str, f64)])]) -> PathBuf {
             full: false,
             captures: None,
             hidden: specs,
+            auto_exposure: 0.0,
         },
         &dir,
         &regolith_model_captures::ModelCaptures,

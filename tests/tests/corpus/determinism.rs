@@ -23,6 +23,7 @@ fn run_with(threads: usize, seed: u64, captures: Option<usize>) -> BTreeMap<Stri
             HiddenSpec::named("noise"),
             HiddenSpec::named("texture-lowpass"),
         ],
+        auto_exposure: 0.0,
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)

@@ -72,6 +72,7 @@ fn vrml_mesh_counts_match_the_ply_twin() {
         full: false,
         captures: None,
         hidden: vec![],
+        auto_exposure: 0.0,
     };
     regolith_corpus::generate(
         &opts,

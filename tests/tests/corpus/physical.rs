@@ -60,6 +60,7 @@ fn campaign(seed: u64, case: &str) -> PathBuf {
         full: false,
         captures: None,
         hidden,
+        auto_exposure: 0.0,
     };
     let renderer = PhysicalCaptures::new(PhysicalOptions::new(renders(), None));
     generate(&opts, &dir, &renderer, &|_, _| {}).unwrap_or_else(|e| {
@@ -716,6 +717,7 @@ fn a_fresh_render_reproduces_the_checked_in_one_within_its_noise() {
         full: false,
         captures: None,
         hidden: Vec::new(),
+        auto_exposure: 0.0,
     };
     let renderer = PhysicalCaptures::new(PhysicalOptions::new(
         cache.path().to_path_buf(),
@@ -765,6 +767,7 @@ fn a_physical_campaign_is_the_same_bytes_on_one_and_two_threads() {
             full: false,
             captures: None,
             hidden: effects::parse_list("vignetting,noise").unwrap(),
+            auto_exposure: 0.0,
         };
         let renderer = PhysicalCaptures::new(PhysicalOptions::new(renders(), None));
         rayon::ThreadPoolBuilder::new()
