@@ -7,7 +7,7 @@
 //! ±0.1° / ±3 mm per axis, shadows ±3°) and how many errors lay within twice the standard
 //! error the workflow reported (about 95 % should, if that uncertainty is honest).
 //!
-//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN] [ENTRY] [FRAMES]`
+//! `cargo run --release -p regolith-tests --example gap_matrix -- [SEEDS] [OUT_DIR] [CASES] [CAPTURES] [CAMERAS] [PARAMS] [TERRAIN] [ENTRY] [FRAMES] [AUTO_EXPOSURE]`
 //! (`CASES`: comma-separated case labels, e.g. `none,distortion`, or `all`; `CAPTURES`: capture
 //! locations per campaign, default the preset's 2, `-` for it, `test` for each case's in the
 //! hidden-effect test (`gap_case::test_captures`: four for a distortion and a pose bias beside
@@ -18,7 +18,9 @@
 //! `truth-albedo` for the entry's heights with the true albedo, default `entry`; `ENTRY`: the
 //! entry to run on, default `laser/0.01`, e.g. `sfm/0.02`; `FRAMES`: who makes the "real"
 //! frames, `model` (default: the validator's own model) or a Mitsuba render cache folder, e.g.
-//! `corpus/renders` (`+` after it renders the shots it lacks: `/tmp/renders+`)).
+//! `corpus/renders` (`+` after it renders the shots it lacks: `/tmp/renders+`); `AUTO_EXPOSURE`:
+//! a hidden exposure's spread between capture locations, `corpus generate --auto-exposure`,
+//! default 0).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::BTreeMap;
@@ -63,6 +65,7 @@ fn main() {
                 render_missing: dir.ends_with('+'),
             },
         },
+        auto_exposure: args.get(9).map_or(0.0, |s| s.parse().unwrap()),
     };
     if let Some(only) = args.get(2).filter(|s| *s != "all") {
         let only: Vec<&str> = only.split(',').collect();
@@ -83,6 +86,9 @@ fn main() {
             };
             let r = run_case(&root, label, seed, hidden, &setup);
             println!("{}", r.line(label, seed));
+            for w in &r.gap.withheld {
+                println!("{:<22} withheld {}: {}", "", w.effect, w.reason);
+            }
             let checks = r.target_checks();
             let off: Vec<String> = checks
                 .iter()

@@ -54,6 +54,11 @@ pub mod targets {
     pub const POSE_DEG: f64 = 0.1;
     /// Pose bias, each translation axis, metres.
     pub const POSE_M: f64 = 0.003;
+    /// An auto-exposing camera's gain per capture, relative (after both the fitted and the
+    /// true gains are taken relative to their geometric mean): twice the systematic log gain
+    /// two captures' views of one terrain show with nothing hidden
+    /// (`regolith_validator::gap::capture_exposure::SYSTEMATIC_LOG_GAIN`).
+    pub const CAPTURE_GAIN_REL: f64 = 0.07;
     /// Shadows' light direction (azimuth and elevation each), degrees.
     pub const SHADOWS_DEG: f64 = 3.0;
 }
@@ -150,6 +155,27 @@ pub fn target_checks(
     out
 }
 
+/// The fitted per-capture gains' worst relative error against the true ones, both taken
+/// relative to their geometric mean over the true captures (only ratios are measurable);
+/// `None` when a true capture has no fitted gain.
+pub fn capture_gain_error(
+    truth: &BTreeMap<String, f64>,
+    fitted: &BTreeMap<String, f64>,
+) -> Option<f64> {
+    let pairs: Vec<(f64, f64)> = truth
+        .iter()
+        .map(|(c, t)| Some((t.ln(), fitted.get(c)?.ln())))
+        .collect::<Option<_>>()?;
+    let n = pairs.len().max(1) as f64;
+    let (mt, mf) = pairs
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (t, f)| (a + t / n, b + f / n));
+    pairs
+        .iter()
+        .map(|(t, f)| ((f - mf) - (t - mt)).exp_m1())
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+}
+
 /// What one case produced.
 #[derive(Debug)]
 pub struct CaseResult {
@@ -160,6 +186,9 @@ pub struct CaseResult {
     /// The disagreement with the true hidden effects added to the entry's model: the floor
     /// the workflow can reach (equal to `gap.metrics_before` when nothing is hidden).
     pub floor: Metrics,
+    /// An auto-exposing camera's true gain factor per capture location
+    /// (`truth/hidden.json` `capture_exposure`; empty with one exposure for all).
+    pub capture_exposure: BTreeMap<String, f64>,
 }
 
 /// Every [`Figure`] of `m`, in [`Figure::ALL`]'s order.
@@ -211,9 +240,29 @@ impl CaseResult {
     /// Every parameter of the hidden effects that has a target ([`targets`]), checked against
     /// its fit ([`target_checks`]).
     pub fn target_checks(&self) -> Vec<TargetCheck> {
-        target_checks(&self.truth, &|e, k| {
+        let mut out = target_checks(&self.truth, &|e, k| {
             Some((self.fitted(e, k)?, self.std_err(e, k)))
-        })
+        });
+        if !self.capture_exposure.is_empty() {
+            out.push(TargetCheck {
+                what: "exposure.capture_gain".into(),
+                error: capture_gain_error(&self.capture_exposure, &self.fitted_capture_gains()),
+                std_err: None,
+                tolerance: targets::CAPTURE_GAIN_REL,
+            });
+        }
+        out
+    }
+
+    /// The per-capture gains of a named `exposure` (empty when none was named with them).
+    pub fn fitted_capture_gains(&self) -> BTreeMap<String, f64> {
+        self.gap
+            .named
+            .iter()
+            .filter(|n| n.effect == "exposure")
+            .flat_map(|n| &n.per_capture)
+            .filter_map(|c| Some((c.capture.clone(), *c.params.get("gain")?)))
+            .collect()
     }
 
     /// The standard error the workflow reported for `effect`'s parameter `param`.
@@ -242,6 +291,11 @@ impl CaseResult {
                     se.map_or(String::new(), |s| format!("±{s:.4}"))
                 );
             }
+        }
+        let fitted = self.fitted_capture_gains();
+        for (c, t) in &self.capture_exposure {
+            let f = fitted.get(c).map_or("-".into(), |f| format!("{f:.4}"));
+            detail += &format!(" exposure.{c}={t:.4}→{f}");
         }
         let (b, a, f) = (
             figures(&self.gap.metrics_before),
@@ -323,6 +377,9 @@ pub struct Setup {
     /// Who makes the campaign's NavCam frames: the validator's own model (default, for the
     /// fitting code's unit proof) or Mitsuba through the corpus's camera.
     pub frames: Frames,
+    /// With a hidden `exposure`, an auto-exposing camera of this spread (`corpus generate
+    /// --auto-exposure`): each capture location's gain its own. 0: one exposure for all.
+    pub auto_exposure: f64,
 }
 
 /// Who makes a case's "real" frames.
@@ -411,6 +468,11 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         full: false,
         captures: setup.captures,
         hidden: specs,
+        auto_exposure: if hidden.contains(&"exposure") {
+            setup.auto_exposure
+        } else {
+            0.0
+        },
     };
     generate(&opts, &camp, setup.frames.renderer().as_ref(), &|_, _| {}).unwrap();
     let c = regolith_compiler::ingest::campaign::load(&camp).unwrap();
@@ -454,16 +516,23 @@ pub fn run_case(root: &Path, label: &str, seed: u64, hidden: &[&str], setup: &Se
         }
     };
     let gap = gap::run_on(&view, &geometry, entry, &opts).unwrap();
-    let truth: serde_json::Value =
+    let hidden_json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(camp.join("truth/hidden.json")).unwrap()).unwrap();
-    let truth: Vec<Effect> = serde_json::from_value(truth["effects"].clone()).unwrap();
+    let truth: Vec<Effect> = serde_json::from_value(hidden_json["effects"].clone()).unwrap();
     let mut oracle: SensorModel = gap.model_before.clone();
     for t in &truth {
         oracle.effects.retain(|e| e.name() != t.name());
         oracle.effects.push(*t);
     }
     let floor = gap::measure_model_on(&view, &geometry, &oracle, &gap.model_before, &opts).unwrap();
-    CaseResult { truth, gap, floor }
+    let capture_exposure =
+        serde_json::from_value(hidden_json["capture_exposure"].clone()).unwrap_or_default();
+    CaseResult {
+        truth,
+        gap,
+        floor,
+        capture_exposure,
+    }
 }
 
 /// The confusion matrix over cases: hidden label → named effect → count.
@@ -511,6 +580,26 @@ impl fmt::Display for Confusion {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn capture_gains_are_compared_as_ratios() {
+        let truth: BTreeMap<String, f64> = [("a".to_string(), 1.2), ("b".to_string(), 0.9)].into();
+        // The same ratios at another common level: exact.
+        let scaled: BTreeMap<String, f64> =
+            [("a".to_string(), 0.6), ("b".to_string(), 0.45)].into();
+        assert!(capture_gain_error(&truth, &scaled).unwrap().abs() < 1e-12);
+        // A ratio 4 % too large: each capture 2 % off its geometric mean.
+        let off: BTreeMap<String, f64> =
+            [("a".to_string(), 1.2 * 1.04), ("b".to_string(), 0.9)].into();
+        let e = capture_gain_error(&truth, &off).unwrap();
+        assert!(
+            (e.abs() - (1.04f64.ln() / 2.0).exp_m1()).abs() < 1e-12,
+            "{e}"
+        );
+        // A capture without a fitted gain: no figure.
+        let partial: BTreeMap<String, f64> = [("a".to_string(), 1.0)].into();
+        assert_eq!(capture_gain_error(&truth, &partial), None);
+    }
 
     #[test]
     fn target_checks_hold_each_parameter_to_its_target() {

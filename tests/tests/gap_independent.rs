@@ -7,10 +7,12 @@
 //! the workflow's rules were examined (`corpus/renders-train/`, docs/gap-findings.md). The
 //! cases asserted here are those the workflow got exactly right on every training seed: nothing
 //! hidden (nothing may be named: the lab's lit rim and walls behind the terrain must not read
-//! as a blur, nor the texture's radiometry as an exposure), a response curve and a texture
-//! low-pass. Each case's line is printed with its parameters against the truth; the full
-//! confusion matrix over every case is the `gap_matrix` example's (`FRAMES` =
-//! `corpus/renders`).
+//! as a blur, nor the texture's radiometry as an exposure), a response curve, a texture
+//! low-pass, and an exposure that differs between the capture locations (an auto-exposing
+//! camera, [`AUTO_EXPOSURE`]; one exposure for every frame is the texture's transfer as much
+//! as the camera's, docs/gap-findings.md). Each case's line is printed with its parameters
+//! against the truth; the full confusion matrix over every case is the `gap_matrix` example's
+//! (`FRAMES` = `corpus/renders`, `AUTO_EXPOSURE` = 0.1).
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -19,8 +21,13 @@ use regolith_tests::gap_case::{run_case, Frames, Setup};
 /// The test seeds (training: 311–313).
 const SEEDS: [u64; 3] = [301, 302, 303];
 
+/// The spread of a hidden exposure between capture locations (`corpus generate
+/// --auto-exposure`): neighbouring locations' gains differ by 10–20 % in log.
+const AUTO_EXPOSURE: f64 = 0.1;
+
 fn setup() -> Setup {
     Setup {
+        auto_exposure: AUTO_EXPOSURE,
         frames: Frames::Mitsuba {
             renders: regolith_tests::workspace_root().join("corpus/renders"),
             render_missing: false,
@@ -69,4 +76,9 @@ fn a_hidden_response_curve_is_named() {
 #[test]
 fn a_hidden_texture_low_pass_is_named() {
     assert_named_exactly("texture-lowpass", &["texture-lowpass"]);
+}
+
+#[test]
+fn an_exposure_that_differs_between_captures_is_named() {
+    assert_named_exactly("exposure", &["exposure"]);
 }

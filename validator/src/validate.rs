@@ -542,6 +542,7 @@ fn render_view(
         ground_from_camera: a.ground_from_camera,
         rig_from_camera: view.rig_from_camera(&format!("cameras/{camera}"))?,
     };
+    let sensor = sensor.at_capture(capture);
     let r = sensor.render(scene, light, &calibrated, &at, RENDER_SAMPLING, Some(seed));
     let rendered = r.rendered;
     let dn: Vec<f32> = r.dn.iter().map(|v| v / 255.0).collect();

@@ -356,3 +356,33 @@ fn a_texture_transfer_scales_the_albedo_and_older_bodies_read_without_one() {
     let back: SensorModel = serde_json::from_str(&serde_json::to_string(&with).unwrap()).unwrap();
     assert_eq!(back, with);
 }
+
+#[test]
+fn a_capture_exposure_scales_its_capture_only_and_older_bodies_read_without_one() {
+    let mut m = model(vec![Effect::Gamma { gamma: 1.5 }]);
+    m.texture_transfer = Some(TextureTransfer { gain: 1.25 });
+    m.capture_exposure = [("loc01".to_string(), 0.9), ("loc02".to_string(), 1.1)]
+        .into_iter()
+        .collect();
+    // The capture's gain folds into the texture's transfer (both scale the radiance before any
+    // image effect); a capture the table does not list keeps the transfer as it is.
+    let at1 = m.at_capture("loc01");
+    assert!((at1.texture_transfer.unwrap().gain - 1.125).abs() < 1e-12);
+    assert!(at1.capture_exposure.is_empty());
+    assert_eq!(at1.effects, m.effects);
+    assert!((m.at_capture("loc02").texture_transfer.unwrap().gain - 1.375).abs() < 1e-12);
+    assert_eq!(m.at_capture("loc03").texture_transfer, m.texture_transfer);
+    let bare = model(vec![]);
+    assert_eq!(bare.at_capture("loc01"), bare);
+    // A 1.12 body has no table; the field round-trips and is left out when empty.
+    let old: SensorModel = serde_json::from_str(
+        r#"{"effects":[{"effect":"gamma","gamma":1.5}],"texture_transfer":{"gain":1.25}}"#,
+    )
+    .unwrap();
+    assert!(old.capture_exposure.is_empty());
+    assert!(!serde_json::to_string(&old)
+        .unwrap()
+        .contains("capture_exposure"));
+    let back: SensorModel = serde_json::from_str(&serde_json::to_string(&m).unwrap()).unwrap();
+    assert_eq!(back, m);
+}

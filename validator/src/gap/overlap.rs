@@ -75,12 +75,27 @@ impl DepthView<'_> {
 /// One terrain point seen by two views.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pair {
-    /// Fold (capture) of the two views.
+    /// Fold (capture) of the first view.
     pub fold: usize,
+    /// Fold of the second view (the first's for pairs within a capture).
+    pub other_fold: usize,
     /// Real mean DN (low-passed like the photometric samples) in each view.
     pub real: [f64; 2],
+    /// The render's radiance (after the PSF, low-passed likewise) in each view.
+    pub render: [f64; 2],
     /// Normalised squared image radius in each view (as [`super::photometry::Samples::rho2`]).
     pub rho2: [f64; 2],
+    /// The point's ground `x`, `y`, metres.
+    pub ground: [f64; 2],
+}
+
+/// Which views [`pairs`] pairs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pairing {
+    /// Views of one capture (the stereo head's cameras): one instant, light and exposure.
+    WithinCaptures,
+    /// Views of different captures ([`super::capture_exposure`]).
+    AcrossCaptures,
 }
 
 struct Prepared<'a> {
@@ -95,15 +110,18 @@ struct Prepared<'a> {
     h: usize,
 }
 
-/// The pairs of every two views of one capture (fold). `analyses` are the views'
-/// [`Analysis`] images with `preds`; `poses` are the `ground_from_camera` the renders used.
+/// The pairs of every two views of one capture (fold), or of two different captures, as
+/// `pairing` says. `analyses` are the views' [`Analysis`] images with `preds`; `poses` are the
+/// `ground_from_camera` the renders used.
 pub fn pairs(
     views: &[GapView],
     preds: &[Prediction],
     analyses: &[Analysis],
     folds: &[usize],
     poses: &[Pose],
+    pairing: Pairing,
 ) -> Vec<Pair> {
+    let across = pairing == Pairing::AcrossCaptures;
     let prepared: Vec<Prepared<'_>> = views
         .iter()
         .zip(preds)
@@ -138,6 +156,7 @@ pub fn pairs(
                 let i = y * va.w + x;
                 let z = f64::from(va.pred.depth[i]);
                 let ra = f64::from(va.analysis.real[i]);
+                let render_a = f64::from(va.analysis.render[i]);
                 if !va.analysis.eroded[i] || !z.is_finite() || z <= 0.0 || !usable(ra) {
                     continue;
                 }
@@ -145,7 +164,7 @@ pub fn pairs(
                 let ground = va.pose.transform_point([xn * z, yn * z, z]);
                 let rho2_a = ((x as f64 - va.cx).powi(2) + (y as f64 - va.cy).powi(2)) / va.scale;
                 let others = prepared.iter().zip(folds).skip(a + 1);
-                for (vb, _) in others.filter(|(_, f)| **f == folds[a]) {
+                for (vb, &fold_b) in others.filter(|(_, f)| (**f == folds[a]) != across) {
                     let Some((_, [u, v], _)) = vb.seen.sees(ground, 0.0) else {
                         continue;
                     };
@@ -154,13 +173,18 @@ pub fn pairs(
                     else {
                         continue;
                     };
+                    let render_b =
+                        bilinear(&vb.analysis.render, vb.w, vb.h, u, v).unwrap_or(f64::NAN);
                     out.push(Pair {
                         fold: folds[a],
+                        other_fold: fold_b,
                         real: [ra, rb],
+                        render: [render_a, render_b],
                         rho2: [
                             rho2_a,
                             ((u - vb.cx).powi(2) + (v - vb.cy).powi(2)) / vb.scale,
                         ],
+                        ground: [ground[0], ground[1]],
                     });
                 }
             }

@@ -58,6 +58,8 @@ pub(super) fn rho2_scale(cam: &CameraModel, w: usize, h: usize) -> f64 {
 pub struct Analysis {
     /// The real frame mean, low-passed by [`ANALYSIS_SIGMA`].
     pub real: Vec<f32>,
+    /// The render's radiance after the PSF, low-passed like the real side.
+    pub render: Vec<f32>,
     /// The render's terrain mask eroded by [`ERODE`].
     pub eroded: Vec<bool>,
     /// The render's background (no terrain) eroded by [`ERODE`].
@@ -65,12 +67,18 @@ pub struct Analysis {
 }
 
 impl Analysis {
-    /// The analysis images of view `v` with its render `p`.
-    pub fn new(v: &GapView, p: &Prediction) -> Analysis {
+    /// The analysis images of view `v` with its render `p`, the PSF a Gaussian of `sigma_px`.
+    pub fn new(v: &GapView, p: &Prediction, sigma_px: f64) -> Analysis {
         let (w, h) = (v.width, v.height);
         let empty: Vec<bool> = p.mask.iter().map(|m| !m).collect();
         Analysis {
             real: gaussian_blur(&v.mean(), w, h, ANALYSIS_SIGMA),
+            render: gaussian_blur(
+                &p.radiance,
+                w,
+                h,
+                (sigma_px * sigma_px + ANALYSIS_SIGMA * ANALYSIS_SIGMA).sqrt(),
+            ),
             eroded: erode(&p.mask, w, h, ERODE),
             background: erode(&empty, w, h, ERODE),
         }
@@ -188,23 +196,10 @@ impl Samples {
         }
     }
 
-    /// Appends the samples of view number `view` (`a` its [`Analysis`]), its radiance blurred
-    /// by a Gaussian PSF of `sigma_px`.
-    pub fn add(
-        &mut self,
-        (view, fold): (usize, usize),
-        v: &GapView,
-        p: &Prediction,
-        a: &Analysis,
-        sigma_px: f64,
-    ) {
+    /// Appends the samples of view number `view` (`a` its [`Analysis`]).
+    pub fn add(&mut self, (view, fold): (usize, usize), v: &GapView, a: &Analysis) {
         let (w, h) = (v.width, v.height);
-        let blurred = gaussian_blur(
-            &p.radiance,
-            w,
-            h,
-            (sigma_px * sigma_px + ANALYSIS_SIGMA * ANALYSIS_SIGMA).sqrt(),
-        );
+        let blurred = &a.render;
         let cam = &v.camera_model;
         let corner2 = rho2_scale(cam, w, h);
         for y in (0..h).step_by(STRIDE) {
@@ -379,7 +374,7 @@ pub fn invert(s: &Samples, i: usize, p: &[f64; 4]) -> f64 {
 }
 
 /// Radiance that the model at `p` maps to `dn` at normalised squared radius `rho2`.
-fn invert_dn(dn: f64, rho2: f64, p: &[f64; 4]) -> f64 {
+pub(super) fn invert_dn(dn: f64, rho2: f64, p: &[f64; 4]) -> f64 {
     let strength = p[2].clamp(0.0, 0.999_999);
     let c = (1.0 - strength).powf(-0.5) - 1.0;
     let v = 1.0 / (1.0 + c * rho2).powi(2);
@@ -645,8 +640,11 @@ mod tests {
             let other = ((k * 7) % 100) as f64 / 100.0;
             pairs.push(Pair {
                 fold: k % 2,
+                other_fold: k % 2,
                 real: [dn(rad, rho2), dn(rad, other)],
+                render: [rad; 2],
                 rho2: [rho2, other],
+                ground: [0.0; 2],
             });
         }
         let set = ["gain", "vignetting"];

@@ -171,6 +171,7 @@ pub fn predict(
     supersample: u32,
 ) -> Prediction {
     let sampling = Sampling::Edges(supersample);
+    let model = model.at_capture(&v.capture);
     Prediction::from(model.render(scene, light, &v.camera_model, &v.at, sampling, None))
 }
 
@@ -186,6 +187,7 @@ pub fn predict_from_hits(
     hits: &PrimaryHits,
 ) -> Prediction {
     let sampling = Sampling::Edges(supersample);
+    let model = model.at_capture(&v.capture);
     Prediction::from(model.render_from_hits(
         scene,
         hits,
@@ -206,6 +208,7 @@ pub fn predict_relit(
     model: &SensorModel,
     hits: &PrimaryHits,
 ) -> Prediction {
+    let model = model.at_capture(&v.capture);
     Prediction::from(model.relight(scene, hits, light, &v.camera_model, None))
 }
 

@@ -20,6 +20,8 @@ mod blur;
 pub mod detail;
 pub mod image;
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 use regolith_format::camera_model::CameraModel;
@@ -69,6 +71,11 @@ pub struct SensorModel {
     /// The texture's transfer to the camera's albedo; `None`: the texture is taken as it is.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture_transfer: Option<TextureTransfer>,
+    /// An auto-exposing camera's gain per capture location (by capture name), on top of the
+    /// exposure: a capture not listed has gain 1. Renders of a view apply its capture's gain
+    /// ([`SensorModel::at_capture`]).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub capture_exposure: BTreeMap<String, f64>,
 }
 
 impl From<Vec<Effect>> for SensorModel {
@@ -77,11 +84,25 @@ impl From<Vec<Effect>> for SensorModel {
         SensorModel {
             effects,
             texture_transfer: None,
+            capture_exposure: BTreeMap::new(),
         }
     }
 }
 
 impl SensorModel {
+    /// The model as the views of capture `capture` see it: its gain from
+    /// [`SensorModel::capture_exposure`] folded into the texture's transfer (both scale the
+    /// radiance before any image effect), the per-capture table emptied.
+    pub fn at_capture(&self, capture: &str) -> SensorModel {
+        let mut m = self.clone();
+        let table = std::mem::take(&mut m.capture_exposure);
+        if let Some(g) = table.get(capture).copied().filter(|g| *g != 1.0) {
+            let gain = m.texture_transfer.map_or(1.0, |t| t.gain) * g;
+            m.texture_transfer = Some(TextureTransfer { gain });
+        }
+        m
+    }
+
     /// `base` with every `distortion` effect added to its `k1`, `k2`.
     pub fn camera(&self, base: &CameraModel) -> CameraModel {
         let mut cam = base.clone();

@@ -5,12 +5,12 @@
 
 use std::collections::BTreeMap;
 
-use crate::gap::consistency;
 use crate::gap::context::{
     cross_validate, has, honest_std_err, jackknife, named, scored, upsert, Ctx, SIGNIFICANCE,
 };
 use crate::gap::select::{choose_with, subsets, Candidate};
 use crate::gap::views::Prediction;
+use crate::gap::{capture_exposure, consistency};
 use crate::gap::{
     overlap, photometry, response, CaptureParams, Named, ScoredCandidate, TransferFit, Withheld,
 };
@@ -201,27 +201,65 @@ pub(crate) fn photometry_stage(
         .views
         .iter()
         .zip(&preds)
-        .map(|(v, p)| photometry::Analysis::new(v, p))
+        .map(|(v, p)| photometry::Analysis::new(v, p, psf))
         .collect();
     let mut plain = photometry::Samples::default();
-    for (k, (((v, p), a), f)) in ctx
-        .views
-        .iter()
-        .zip(&preds)
-        .zip(&analyses)
-        .zip(&ctx.folds)
-        .enumerate()
-    {
-        plain.add((k, *f), v, p, a, psf);
+    for (k, ((v, a), f)) in ctx.views.iter().zip(&analyses).zip(&ctx.folds).enumerate() {
+        plain.add((k, *f), v, a);
     }
     let poses: Vec<_> = ctx.views.iter().map(|v| model.pose(&v.at)).collect();
-    let pairs = overlap::pairs(&ctx.views, &preds, &analyses, &ctx.folds, &poses);
+    let pairs = overlap::pairs(
+        &ctx.views,
+        &preds,
+        &analyses,
+        &ctx.folds,
+        &poses,
+        overlap::Pairing::WithinCaptures,
+    );
     // The response curve the noise shows ([`response`]) decides the curve when it can: then
     // `gamma` is no candidate of the render-side choice, which is made with the curve fixed.
     let noise_curve = noise.fit.clone();
     let shows = noise_curve
         .as_ref()
         .and_then(|w| w.shows_curve(MIN_CURVE, SIGNIFICANCE));
+    // An auto-exposing camera: the captures' relative gains, measured where they see the same
+    // terrain ([`capture_exposure`]), under the curve and black level the noise shows. When
+    // they differ, every render sample carries its capture's gain from here on, so the choice
+    // below sees one exposure for all captures, as its model has.
+    let first_guess = [
+        1.0,
+        noise_curve
+            .as_ref()
+            .filter(|_| shows.is_some())
+            .map_or(0.0, |w| w.black_dn / 255.0),
+        0.0,
+        noise_curve
+            .as_ref()
+            .filter(|_| shows == Some(true))
+            .map_or(1.0, |w| w.gamma),
+    ];
+    let cross = if ctx.n_folds >= 2 {
+        overlap::pairs(
+            &ctx.views,
+            &preds,
+            &analyses,
+            &ctx.folds,
+            &poses,
+            overlap::Pairing::AcrossCaptures,
+        )
+    } else {
+        Vec::new()
+    };
+    let gains = capture_exposure::measure(&pairs, &cross, ctx.n_folds, &first_guess)
+        .filter(capture_exposure::CaptureGains::differ);
+    if let Some(g) = &gains {
+        for (r, f) in plain.radiance.iter_mut().zip(&plain.fold) {
+            let l = g.log_gain.get(*f).copied().unwrap_or(0.0);
+            if l.is_finite() {
+                *r *= l.exp();
+            }
+        }
+    }
     let linear = plain.clone();
     if shows == Some(true) {
         plain.curve = noise_curve.as_ref().map(|w| w.gamma);
@@ -351,6 +389,10 @@ pub(crate) fn photometry_stage(
     }
     let (choice, chosen, fit_set, f) = loop {
         let Some(choice) = choose_with(&allowed, min_share, &floor) else {
+            if gains.is_some() {
+                let at = (&pairs[..], &cross[..], &plain, &first_guess);
+                name_capture_exposure(ctx, at, model, out, withheld);
+            }
             return report(&cands);
         };
         let chosen = allowed[choice.index].effects.clone();
@@ -593,7 +635,113 @@ pub(crate) fn photometry_stage(
             out.push(n);
         }
     }
+    if gains.is_some() {
+        name_capture_exposure(ctx, (&pairs, &cross, &plain, &p), model, out, withheld);
+    }
     report(&cands)
+}
+
+/// The mean squared change, DN², that the captures' relative gains `g` make to the real DN of
+/// the samples `s` (reported; not held against [`MIN_PHOTOMETRIC_DN2`], which guards against
+/// the entry's own radiometric error, and that cancels in the captures' double ratio).
+fn gain_change_dn2(s: &photometry::Samples, g: &capture_exposure::CaptureGains) -> f64 {
+    let (sum, n) = s
+        .real
+        .iter()
+        .zip(&s.fold)
+        .filter_map(|(r, f)| {
+            let l = g.log_gain.get(*f).copied().filter(|l| l.is_finite())?;
+            Some((l.exp_m1() * r).powi(2))
+        })
+        .fold((0.0, 0usize), |(a, n), x| (a + x, n + 1));
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
+}
+
+/// Names the captures' own exposure gains measured from the `cross` pairs with the stage's
+/// final photometric parameters `p` (the choice was made on renders carrying a first estimate
+/// of them): into `model.capture_exposure`, and into `exposure`'s entry in `out` (added, at
+/// gain 1 and the model's offset, when the stage named no offset), its per-capture gains with
+/// their errors (the image change they make over the `samples` as evidence). Withheld when,
+/// under the final parameters, the captures agree after all.
+fn name_capture_exposure(
+    ctx: &Ctx<'_>,
+    (within, cross, samples, p): (
+        &[overlap::Pair],
+        &[overlap::Pair],
+        &photometry::Samples,
+        &[f64; 4],
+    ),
+    model: &mut SensorModel,
+    out: &mut Vec<Named>,
+    withheld: &mut Vec<Withheld>,
+) {
+    let Some(g) = capture_exposure::measure(within, cross, ctx.n_folds, p) else {
+        return;
+    };
+    let names = ctx.fold_names();
+    let listed: Vec<(String, f64, f64)> = names
+        .iter()
+        .zip(g.log_gain.iter().zip(&g.std_err))
+        .filter(|(_, (l, _))| l.is_finite())
+        .map(|(c, (l, e))| (c.clone(), l.exp(), l.exp() * e))
+        .collect();
+    let shown = listed
+        .iter()
+        .map(|(c, v, e)| format!("{c} {v:.3} ± {e:.3}"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let change = gain_change_dn2(samples, &g);
+    let evidence = format!(
+        "the captures' relative gains where they see the same terrain ({} samples in {} ground \
+         blocks; real over rendered radiance, so the entry's texture cancels): {shown}; χ² {:.1} \
+         on {} degrees of freedom against one gain for all, p = {:.2e}, under the falloff the \
+         pairs prefer ({:.2}); they change the images by {change:.1} DN² (mean square)",
+        g.samples, g.blocks, g.chi2, g.dof, g.p, g.falloff
+    );
+    if !g.differ() {
+        withheld.push(Withheld {
+            effect: "exposure".into(),
+            stage: "photometry".into(),
+            reason: evidence
+                + "; under the stage's final response curve and falloff they agree within \
+                   their errors",
+        });
+        return;
+    }
+    model.capture_exposure = listed.iter().map(|(c, v, _)| (c.clone(), *v)).collect();
+    let per_capture: Vec<CaptureParams> = listed
+        .iter()
+        .map(|(c, v, _)| CaptureParams {
+            capture: c.clone(),
+            params: BTreeMap::from([("gain".to_string(), *v)]),
+        })
+        .collect();
+    if let Some(n) = out.iter_mut().find(|n| n.effect == "exposure") {
+        n.evidence += &format!("; and {evidence}");
+        n.per_capture = per_capture;
+        return;
+    }
+    let offset = model
+        .effects
+        .iter()
+        .find_map(|e| match e {
+            Effect::Exposure { offset, .. } => Some(*offset),
+            _ => None,
+        })
+        .unwrap_or(0.0);
+    let mut n = named(
+        &Effect::Exposure { gain: 1.0, offset },
+        BTreeMap::from([("gain".to_string(), 0.0), ("offset".to_string(), 0.0)]),
+        0.0,
+        "photometry",
+        format!("an exposure that differs between captures: {evidence}"),
+    );
+    n.per_capture = per_capture;
+    out.push(n);
 }
 
 #[cfg(test)]
@@ -619,7 +767,10 @@ mod tests {
             s.block.push(0);
             pairs.push(overlap::Pair {
                 fold: k % 2,
+                other_fold: k % 2,
                 real: [dn(rad, rho2) * (1.0 + noise), dn(rad, other)],
+                render: [rad; 2],
+                ground: [0.0; 2],
                 rho2: [rho2, other],
             });
         }
