@@ -636,7 +636,13 @@ pub(crate) fn photometry_stage(
         }
     }
     if gains.is_some() {
-        name_capture_exposure(ctx, (&pairs, &cross, &plain, &p), model, out, withheld);
+        name_capture_exposure(
+            ctx,
+            (&pairs, &cross, &plain, &first_guess),
+            model,
+            out,
+            withheld,
+        );
     }
     report(&cands)
 }
@@ -661,15 +667,16 @@ fn gain_change_dn2(s: &photometry::Samples, g: &capture_exposure::CaptureGains) 
     }
 }
 
-/// Names the captures' own exposure gains measured from the `cross` pairs with the stage's
-/// final photometric parameters `p` (the choice was made on renders carrying a first estimate
-/// of them): into `model.capture_exposure`, and into `exposure`'s entry in `out` (added, at
-/// gain 1 and the model's offset, when the stage named no offset), its per-capture gains with
-/// their errors (the image change they make over the `samples` as evidence). Withheld when,
-/// under the final parameters, the captures agree after all.
+/// Names the captures' own exposure gains measured from the `cross` and `within` pairs under
+/// the response curve and exposure offset the stage left in `model` (a fitted parameter the
+/// stage withheld does not enter; without them those of `first_guess`): into
+/// `model.capture_exposure`, and into `exposure`'s entry in `out` (added, at gain 1 and the
+/// model's offset, when the stage named no offset), its per-capture gains with their errors
+/// (the image change they make over the `samples` as evidence). Withheld when, under the
+/// model's final effects, the captures agree after all.
 fn name_capture_exposure(
     ctx: &Ctx<'_>,
-    (within, cross, samples, p): (
+    (within, cross, samples, first_guess): (
         &[overlap::Pair],
         &[overlap::Pair],
         &photometry::Samples,
@@ -679,7 +686,16 @@ fn name_capture_exposure(
     out: &mut Vec<Named>,
     withheld: &mut Vec<Withheld>,
 ) {
-    let Some(g) = capture_exposure::measure(within, cross, ctx.n_folds, p) else {
+    let (mut offset, mut gamma) = (first_guess[1], first_guess[3]);
+    for e in &model.effects {
+        match *e {
+            Effect::Exposure { offset: o, .. } => offset = o,
+            Effect::Gamma { gamma: g } => gamma = g,
+            _ => {}
+        }
+    }
+    let Some(g) = capture_exposure::measure(within, cross, ctx.n_folds, &[1.0, offset, 0.0, gamma])
+    else {
         return;
     };
     let names = ctx.fold_names();
