@@ -24,7 +24,7 @@
 //! there; and, in quadrature, from what two viewing directions of one non-Lambertian terrain
 //! disagree by everywhere ([`SYSTEMATIC_LOG_GAIN`]). The captures agree on one gain when `χ²`
 //! of the log gains against zero, with that covariance, is within the false-alarm rate of a
-//! [`SIGNIFICANCE`]-σ departure of one parameter.
+//! 2-σ (`SIGNIFICANCE`) departure of one parameter.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -75,7 +75,7 @@ pub struct CaptureGains {
 }
 
 impl CaptureGains {
-    /// The captures' gains differ beyond the false-alarm rate of a [`SIGNIFICANCE`]-σ
+    /// The captures' gains differ beyond the false-alarm rate of a 2-σ (`SIGNIFICANCE`)
     /// departure of one parameter.
     pub fn differ(&self) -> bool {
         self.p < chi2_sf(SIGNIFICANCE * SIGNIFICANCE, 1.0)
@@ -149,7 +149,7 @@ fn profile_falloff(cross: &[Sample], within: &[Sample], n_folds: usize) -> f64 {
 /// The captures' relative gains from the `cross` pairs of views across captures and the
 /// `within` pairs of views of one capture, with the response curve and offset at full
 /// photometric parameters `p` (whose gain is irrelevant: it cancels). The falloff is not taken
-/// from `p` but profiled ([`profile_falloff`]): two captures see one point at different image
+/// from `p` but profiled by the pairs: two captures see one point at different image
 /// radii, so a falloff left out of the inversion reads as a gain. `None` with fewer than two
 /// captures sharing [`MIN_SAMPLES`] samples, or too few blocks for their covariance.
 pub fn measure(
