@@ -212,7 +212,7 @@ pub fn measure(
     // captures (the reference at −mean(θ), the others at θ − mean(θ)).
     let n = measured.len();
     let mut a = DMatrix::<f64>::zeros(n, m);
-    for (row, _) in measured.iter().enumerate() {
+    for row in 0..n {
         for col in 0..m {
             let own = if row == col + 1 { 1.0 } else { 0.0 };
             a[(row, col)] = own - 1.0 / n as f64;
@@ -241,9 +241,8 @@ pub fn measure(
 /// The co-visible samples of `pairs`, with their double log ratio at `p` and their ground
 /// block.
 fn double_ratios(pairs: &[Pair], p: &[f64; 4]) -> Vec<Sample> {
-    let across: Vec<&Pair> = pairs.iter().collect();
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for q in &across {
+    for q in pairs {
         x0 = x0.min(q.ground[0]);
         x1 = x1.max(q.ground[0]);
         y0 = y0.min(q.ground[1]);
@@ -254,7 +253,7 @@ fn double_ratios(pairs: &[Pair], p: &[f64; 4]) -> Vec<Sample> {
         ((t * GROUND_BLOCKS as f64) as usize).min(GROUND_BLOCKS - 1)
     };
     let lo = 1e-6;
-    across
+    pairs
         .iter()
         .filter_map(|q| {
             let l = [0, 1].map(|k| invert_dn(q.real[k], q.rho2[k], p));
