@@ -16,7 +16,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use regolith_tests::gap_case::{run_case, Frames, Setup};
+use regolith_tests::gap_case::{run_case, CaseResult, Frames, Setup};
 
 /// The test seeds (training: 311–313).
 const SEEDS: [u64; 3] = [301, 302, 303];
@@ -37,12 +37,13 @@ fn setup() -> Setup {
 }
 
 /// Runs case `label` (hiding `hidden`) on every test seed and asserts exactly `hidden` is
-/// named on each.
-fn assert_named_exactly(label: &str, hidden: &[&str]) {
+/// named on each; the cases' results.
+fn assert_named_exactly(label: &str, hidden: &[&str]) -> Vec<CaseResult> {
     let root = tempfile::tempdir().unwrap();
     let setup = setup();
     let mut bad = Vec::new();
     let mut lines = Vec::new();
+    let mut results = Vec::new();
     for seed in SEEDS {
         let r = run_case(root.path(), label, seed, hidden, &setup);
         lines.push(r.line(label, seed));
@@ -58,9 +59,11 @@ fn assert_named_exactly(label: &str, hidden: &[&str]) {
                 "{label} seed {seed}: named {named:?}, hidden {want:?}"
             ));
         }
+        results.push(r);
     }
     println!("{}", lines.join("\n"));
     assert!(bad.is_empty(), "{}\n\n{}", bad.join("\n"), lines.join("\n"));
+    results
 }
 
 #[test]
@@ -80,5 +83,15 @@ fn a_hidden_texture_low_pass_is_named() {
 
 #[test]
 fn an_exposure_that_differs_between_captures_is_named() {
-    assert_named_exactly("exposure", &["exposure"]);
+    for r in assert_named_exactly("exposure", &["exposure"]) {
+        // Every capture has its gain, and the plain form is the brightest over the darkest.
+        let gains = r.fitted_capture_gains();
+        assert_eq!(gains.len(), r.capture_exposure.len(), "{gains:?}");
+        let (lo, hi) = gains.values().fold((f64::INFINITY, 0.0f64), |(lo, hi), g| {
+            (lo.min(*g), hi.max(*g))
+        });
+        let named = r.gap.named.iter().find(|n| n.effect == "exposure").unwrap();
+        let ratio = named.plain["capture_gain_ratio"];
+        assert!((ratio - hi / lo).abs() < 1e-12, "{ratio} for {gains:?}");
+    }
 }

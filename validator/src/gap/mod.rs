@@ -519,6 +519,14 @@ fn run_steps(
                 .map(|(k, v)| (k.to_string(), v))
                 .collect();
         }
+        // An auto-exposing camera's gains as the brightest capture's over the darkest's.
+        let gains = model.capture_exposure.values();
+        let (lo, hi) = gains.fold((f64::INFINITY, 0.0f64), |(lo, hi), g| {
+            (lo.min(*g), hi.max(*g))
+        });
+        if n.effect == "exposure" && lo > 0.0 && lo.is_finite() {
+            n.plain.insert("capture_gain_ratio".into(), hi / lo);
+        }
     }
     let headline = Figure::headline(&found.iter().map(|n| n.effect.as_str()).collect::<Vec<_>>());
     Ok(GapResult {
