@@ -159,11 +159,19 @@ pub fn filter_row(src: &[f32], kx: &[f32], padded: &mut Vec<f32>, out: &mut [f32
     let w = src.len();
     let rx = kx.len() / 2;
     padded.clear();
-    padded.extend((0..w + 2 * rx).map(|i| {
+    let at = |i: usize| {
         src.get(reflect101(i as isize - rx as isize, w))
             .copied()
             .unwrap_or(0.0)
-    }));
+    };
+    if rx < w {
+        // The interior is the row itself; only the borders are reflected.
+        padded.extend((0..rx).map(at));
+        padded.extend_from_slice(src);
+        padded.extend((w + rx..w + 2 * rx).map(at));
+    } else {
+        padded.extend((0..w + 2 * rx).map(at));
+    }
     let rows: Vec<&[f32]> = (0..kx.len())
         .map(|k| padded.get(k..k + w).unwrap_or(&[]))
         .collect();
