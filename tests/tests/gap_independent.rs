@@ -10,7 +10,8 @@
 //! as a blur, nor the texture's radiometry as an exposure), a response curve, a texture
 //! low-pass, and an exposure that differs between the capture locations (an auto-exposing
 //! camera, [`AUTO_EXPOSURE`]; one exposure for every frame is the texture's transfer as much
-//! as the camera's, docs/gap-findings.md). Each case's line is printed with its parameters
+//! as the camera's, docs/gap-findings.md); and a distortion, named on every training seed
+//! (beside a pose bias on one), so only it is asserted. Each case's line is printed with its parameters
 //! against the truth; the full confusion matrix over every case is the `gap_matrix` example's
 //! (`FRAMES` = `corpus/renders`, `AUTO_EXPOSURE` = 0.1).
 
@@ -39,6 +40,12 @@ fn setup() -> Setup {
 /// Runs case `label` (hiding `hidden`) on every test seed and asserts exactly `hidden` is
 /// named on each; the cases' results.
 fn assert_named_exactly(label: &str, hidden: &[&str]) -> Vec<CaseResult> {
+    assert_named(label, hidden, true)
+}
+
+/// Runs case `label` (hiding `hidden`) on every test seed and asserts `hidden` is named on
+/// each, and nothing else when `exactly`; the cases' results.
+fn assert_named(label: &str, hidden: &[&str], exactly: bool) -> Vec<CaseResult> {
     let root = tempfile::tempdir().unwrap();
     let setup = setup();
     let mut bad = Vec::new();
@@ -54,7 +61,8 @@ fn assert_named_exactly(label: &str, hidden: &[&str]) -> Vec<CaseResult> {
         named.sort();
         let mut want: Vec<String> = hidden.iter().map(ToString::to_string).collect();
         want.sort();
-        if named != want {
+        let missing = want.iter().any(|w| !named.contains(w));
+        if missing || (exactly && named != want) {
             bad.push(format!(
                 "{label} seed {seed}: named {named:?}, hidden {want:?}"
             ));
@@ -79,6 +87,25 @@ fn a_hidden_response_curve_is_named() {
 #[test]
 fn a_hidden_texture_low_pass_is_named() {
     assert_named_exactly("texture-lowpass", &["texture-lowpass"]);
+}
+
+#[test]
+fn a_hidden_distortion_is_named() {
+    // Decided by the stereo pairs, which the entry's texture does not enter; on one training
+    // seed a pose bias was named beside it, so only the distortion is asserted.
+    for r in assert_named("distortion", &["distortion"], false) {
+        let named = r
+            .gap
+            .named
+            .iter()
+            .find(|n| n.effect == "distortion")
+            .unwrap();
+        assert!(
+            named.evidence.contains("stereo pairs"),
+            "{}",
+            named.evidence
+        );
+    }
 }
 
 #[test]

@@ -29,7 +29,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::consistency::chi2_sf;
-use super::context::SIGNIFICANCE;
+use super::context::beyond_chance;
 use super::overlap::Pair;
 use super::photometry::invert_dn;
 
@@ -77,7 +77,7 @@ impl CaptureGains {
     /// The captures' gains differ beyond the false-alarm rate of a 2-σ (`SIGNIFICANCE`)
     /// departure of one parameter.
     pub fn differ(&self) -> bool {
-        self.p < chi2_sf(SIGNIFICANCE * SIGNIFICANCE, 1.0)
+        beyond_chance(self.p)
     }
 }
 

@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use rayon::prelude::*;
 use regolith_reader::{ReaderError, ReleaseView};
 
+use super::consistency::chi2_sf;
 use super::measure::{self, Metrics};
 use super::one_sample::{OneSample, Shading};
 use super::select::Candidate;
@@ -24,6 +25,12 @@ use crate::validate::campaign_light;
 /// held out, over its 3 DN² floor) whose final strength, next to the free gain, was
 /// 0.0007 ± 0.0083.
 pub(crate) const SIGNIFICANCE: f64 = 2.0;
+
+/// Whether a χ² test over several parameters, of p-value `p`, rejects "none": `p` below the
+/// false-alarm rate of a [`SIGNIFICANCE`]-σ departure of one parameter.
+pub(crate) fn beyond_chance(p: f64) -> bool {
+    p < chi2_sf(SIGNIFICANCE * SIGNIFICANCE, 1.0)
+}
 
 /// Fold of each view: the index of its capture (views of one capture are held out together).
 pub(crate) fn folds(views: &[GapView]) -> Vec<usize> {

@@ -5,10 +5,12 @@
 
 use regolith_format::frames::Pose;
 
+use crate::gap::consistency::chi2_sf;
 use crate::gap::context::{
-    cross_validate, honest_std_err, jackknife, named, scored, upsert, Ctx, SIGNIFICANCE,
+    beyond_chance, cross_validate, honest_std_err, jackknife, named, scored, upsert, Ctx,
+    SIGNIFICANCE,
 };
-use crate::gap::select::{choose, subsets, Candidate};
+use crate::gap::select::{choose, subsets, Candidate, Choice};
 use crate::gap::views::Prediction;
 use crate::gap::{geometry, markers, CaptureParams, Named, ScoredCandidate};
 use crate::sensor::{Effect, Placement, SensorModel};
@@ -82,30 +84,39 @@ pub(crate) fn geometry_levels(ctx: &Ctx<'_>, model: &SensorModel, preds: &[Predi
 }
 
 /// The pairs of every level of `levels`, which were made from `preds`, the renders of `model`:
-/// the stereo pairs of each capture ([`geometry::stereo_pairs`]) and the cross-capture pairs
-/// ([`geometry::cross_pairs`]), whose scaled band-passes are appended to the level's views.
+/// the stereo pairs of each capture ([`geometry::stereo_pairs`]) and, `with_cross`, the
+/// cross-capture pairs ([`geometry::cross_pairs`]), whose scaled band-passes are appended to the
+/// level's views.
 pub(crate) fn pair_levels(
     ctx: &Ctx<'_>,
     model: &SensorModel,
     preds: &[Prediction],
     levels: &Levels,
+    with_cross: bool,
 ) -> Levels {
     let poses: Vec<Pose> = ctx.views.iter().map(|v| model.pose(&v.at)).collect();
     let depth: Vec<&[f32]> = preds.iter().map(|p| p.depth.as_slice()).collect();
     let masks = geometric_masks(ctx, model, preds);
     let mask: Vec<&[bool]> = masks.iter().map(Vec::as_slice).collect();
-    let real: Vec<Vec<f32>> = ctx.views.iter().map(|v| v.mean()).collect();
+    // The views' means are what the cross-capture pairs compare; the stereo pairs need none.
+    let real: Vec<Vec<f32>> = if with_cross {
+        ctx.views.iter().map(|v| v.mean()).collect()
+    } else {
+        Vec::new()
+    };
     let real: Vec<&[f32]> = real.iter().map(Vec::as_slice).collect();
     levels
         .iter()
         .zip(geometry::LEVELS)
         .map(|((imgs, obs), band)| {
             let mut pairs = geometry::stereo_pairs(obs, imgs, &poses, &depth, &mask);
-            let (scaled, cross) =
-                geometry::cross_pairs(obs, imgs, &poses, &depth, &mask, &real, band);
-            pairs.extend(cross);
             let mut all = imgs.clone();
-            all.extend(scaled);
+            if with_cross {
+                let (scaled, cross) =
+                    geometry::cross_pairs(obs, imgs, &poses, &depth, &mask, &real, band);
+                pairs.extend(cross);
+                all.extend(scaled);
+            }
             (all, pairs)
         })
         .collect()
@@ -410,7 +421,7 @@ pub(crate) fn witnessed_fit(
     set: &[&str],
     lone_terms: &dyn Fn() -> usize,
 ) -> (geometry::GeometryFit, usize, Option<Witness>) {
-    let pairs = pair_levels(ctx, model, preds, levels);
+    let pairs = pair_levels(ctx, model, preds, levels, true);
     // A pose bias's fit takes the sightings from the start. A distortion's takes them once
     // fitted without them, sighted through the distortion found ([`marker_observations`]:
     // sighted through the calibration alone they pulled the radial terms, the true terrain,
@@ -599,10 +610,13 @@ const GEOMETRY_SHARE_FACTOR: f64 = 0.3;
 /// a hidden distortion of dk1 −0.047 by 0.118, a hidden pose bias of 0.4°/15 mm by 0.67.
 const GEOMETRY_MIN_ABS: f64 = 0.04;
 
-/// Share of a group of pairs' residual (at zero increment) under which a distortion's fit
-/// counts as confirmed by them whatever its jackknife: hidden distortions on mini took it to
-/// 0.10–0.29 of its value (0.133 → 0.013, 0.063 → 0.018, 0.289 → 0.041; estec 0.187 → 0.017);
-/// a distortion fitted to a hidden texture low-pass raised it (0.015 → 0.135).
+/// Share of a group of pairs' residual (at zero increment) under which a distortion counts as
+/// confirmed by them: the pairs lost most of their residual to it. The pairs compare real
+/// images with real images through the entry's heights, so the entry's texture, which biases
+/// the render's samples, does not enter them; a distortion fitted to a texture's error raises
+/// their residual instead. The same share decides a distortion from the stereo pairs alone,
+/// held out by capture ([`StereoHeldOut`]). Figures: docs/gap-findings.md ("The geometric
+/// choice's evidence on independent captures").
 const STEREO_CONFIRMS: f64 = 0.5;
 
 /// Smallest drop of the alignment residual (band-pass units, all views, renders made with
@@ -610,12 +624,123 @@ const STEREO_CONFIRMS: f64 = 0.5;
 /// 0.056 and 0.069 (distortion, seeds 101, 102) and by 0.3–0.6 (pose bias).
 const GEOMETRY_MIN_RERENDERED: f64 = 0.02;
 
+/// What the stereo pairs alone say of a distortion, held out by capture: each capture's pairs'
+/// residual at zero increment (`before`) and under a one-term distortion fitted to the other
+/// captures' pairs (`after`), summed over the captures. A distortion is the camera's, the same
+/// at every capture, so another capture's fit must hold for this one's pairs; and the pairs do
+/// not pass through the entry's texture. So they decide a distortion where the render's samples
+/// cannot (on captures the model did not make, the render-side residual moves as much with
+/// nothing geometric hidden as with a distortion).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct StereoHeldOut {
+    pub(crate) before: f64,
+    pub(crate) after: f64,
+}
+
+impl StereoHeldOut {
+    /// The pairs lose most of their held-out residual ([`STEREO_CONFIRMS`]) to a distortion.
+    pub(crate) fn decides(&self) -> bool {
+        self.after < STEREO_CONFIRMS * self.before
+    }
+
+    /// Share of the held-out residual the distortion removes.
+    pub(crate) fn share(&self) -> f64 {
+        1.0 - self.after / self.before
+    }
+}
+
+/// [`StereoHeldOut`] of the views' stereo pairs at every level of `levels` (made from `preds`,
+/// the renders of `model`); `None` with fewer than two captures or no pairs.
+pub(crate) fn stereo_held_out(
+    ctx: &Ctx<'_>,
+    model: &SensorModel,
+    preds: &[Prediction],
+    levels: &Levels,
+) -> Option<StereoHeldOut> {
+    if ctx.n_folds < 2 {
+        return None;
+    }
+    let pairs = pair_levels(ctx, model, preds, levels, false);
+    let (imgs, fine) = pairs.last()?;
+    let (mut before, mut after) = (0.0, 0.0);
+    for hold in 0..ctx.n_folds {
+        let test: Vec<_> = fine
+            .iter()
+            .filter(|o| within(o, imgs, hold))
+            .copied()
+            .collect();
+        if test.is_empty() {
+            continue;
+        }
+        let f = fit_levels(&pairs, &["distortion"], 1, &|o, im| !touches(o, im, hold));
+        before += geometry::mse(&test, imgs, &[0.0; 8]);
+        after += geometry::mse(&test, imgs, &f.params);
+    }
+    (before > 0.0).then_some(StereoHeldOut { before, after })
+}
+
 /// The alignment residual at zero increment over all views at the finest level of `levels`
 /// (what [`crate::gap::measure`] reports).
 pub(crate) fn alignment_residual(levels: &Levels) -> f64 {
     levels
         .last()
         .map_or(0.0, |(imgs, obs)| geometry::mse(obs, imgs, &[0.0; 8]))
+}
+
+/// The geometric choice among `cands` (every subset of distortion and pose bias) by the
+/// render's held-out residual, and the index of the chosen set. With a distortion `decided` by
+/// the stereo pairs, the choice is among the sets holding it, their errors taken against the
+/// distortion alone, and the distortion's explained share is the pairs' ([`StereoHeldOut`]).
+fn choose_geometry(
+    cands: &[Candidate],
+    min_share: f64,
+    decided: Option<StereoHeldOut>,
+) -> Option<(Choice, usize)> {
+    let share = min_share * GEOMETRY_SHARE_FACTOR;
+    let Some(d) = decided else {
+        let c = choose(cands, share, GEOMETRY_MIN_ABS)?;
+        let i = c.index;
+        return Some((c, i));
+    };
+    let holding: Vec<(usize, Candidate)> = cands
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.effects.contains(&"distortion"))
+        .map(|(i, c)| {
+            let mut rest = c.clone();
+            rest.effects.retain(|e| *e != "distortion");
+            (i, rest)
+        })
+        .collect();
+    let given: Vec<Candidate> = holding.iter().map(|(_, c)| c.clone()).collect();
+    let c = choose(&given, share, GEOMETRY_MIN_ABS)?;
+    let index = holding.get(c.index).map(|(i, _)| *i)?;
+    let mut explained = vec![("distortion", d.share())];
+    explained.extend(c.explained);
+    Some((Choice { index, explained }, index))
+}
+
+/// Whether the fitted effect `n` departs from none beyond its reported errors: `χ²` of its
+/// parameters against zero, each over its standard error, past the false-alarm rate of a
+/// [`SIGNIFICANCE`]-σ departure of one parameter (the test the captures' exposure gains pass).
+/// A pose bias chosen by the render's residual can be one the fit does not resolve: beside a
+/// distortion the stereo pairs decided, the render's small gain chose one within its errors of
+/// zero (docs/gap-findings.md). The errors are taken as independent (the fit's covariance is
+/// not kept), which counts a correlated pair's departure twice at most.
+fn departs(n: &Named) -> bool {
+    let terms: Vec<f64> = n
+        .params
+        .iter()
+        .filter_map(|(k, v)| {
+            let e = n.std_err.get(k).copied().filter(|e| *e > 0.0)?;
+            Some((v / e).powi(2))
+        })
+        .collect();
+    if terms.is_empty() {
+        return true;
+    }
+    let chi2: f64 = terms.iter().sum();
+    beyond_chance(chi2_sf(chi2, terms.len() as f64))
 }
 
 /// Stage 1: geometry, from `preds`, the renders of `model`. Returns the scored candidates and
@@ -646,14 +771,18 @@ pub(crate) fn geometry_stage(
             }
         })
         .collect();
-    let Some(choice) = choose(&cands, min_share * GEOMETRY_SHARE_FACTOR, GEOMETRY_MIN_ABS) else {
+    // Where the stereo pairs decide a distortion, the render-side choice is made with it, among
+    // the sets that hold it (as the noise decides a response curve for the photometric choice).
+    let stereo = stereo_held_out(ctx, model, preds, &levels);
+    let decided = stereo.filter(StereoHeldOut::decides);
+    let Some((choice, index)) = choose_geometry(&cands, min_share, decided) else {
         return scored(&cands);
     };
-    let set = cands[choice.index].effects.clone();
+    let set = cands[index].effects.clone();
     if set.is_empty() {
         return scored(&cands);
     }
-    let one_term_cv = cands[choice.index].cv_error;
+    let one_term_cv = cands[index].cv_error;
     // Fit on everything and apply; the fit is then refined once from a render seen through
     // the corrected geometry. A pose bias moves the camera: what the render occludes and where
     // its silhouette falls change, which the fixed render's samples cannot follow (mini seed
@@ -729,9 +858,10 @@ pub(crate) fn geometry_stage(
     // captures the jackknife is rough, and mini seed 110's hidden distortion (displacement
     // 0.0174 at 0.7 of the radius) read 0.0154 with a jackknife error of 0.0077 while the
     // pairs' residual fell from 0.289 to 0.041.
-    let confirmed = witness
-        .as_ref()
-        .is_some_and(|w| w.confirms(STEREO_CONFIRMS));
+    let confirmed = decided.is_some()
+        || witness
+            .as_ref()
+            .is_some_and(|w| w.confirms(STEREO_CONFIRMS));
     if set == ["distortion"] && !confirmed {
         if let Some(j) = &jack {
             if radial_shift(&f.params).abs() < SIGNIFICANCE * j[8] {
@@ -808,12 +938,20 @@ pub(crate) fn geometry_stage(
     // correction, a real geometric effect brings the images closer too. One that only moved
     // the samples to where the real band-pass is weaker does not: with a texture low-pass
     // hidden (mini seed 102) a distortion of dk1 −0.064, the same in both captures, lowered the
-    // held-out residual by 0.068 and the re-rendered one by 0.004.
-    if alignment_residual(&levels) - alignment_residual(&geometry_levels(ctx, &current, &corrected))
-        < GEOMETRY_MIN_RERENDERED
+    // held-out residual by 0.068 and the re-rendered one by 0.004. A distortion the stereo pairs
+    // decided stands on them (the render's residual is the texture's).
+    if decided.is_none()
+        && alignment_residual(&levels)
+            - alignment_residual(&geometry_levels(ctx, &current, &corrected))
+            < GEOMETRY_MIN_RERENDERED
     {
         return scored(&cands);
     }
+    let pose_before = model
+        .effects
+        .iter()
+        .find(|e| e.name() == "pose-bias")
+        .copied();
     *model = current;
     let base_err = cands
         .iter()
@@ -833,9 +971,13 @@ pub(crate) fn geometry_stage(
             *share,
             "geometry",
             format!(
-                "dense alignment: held-out band-pass residual {:.4} with no effect, {:.4} with the chosen set{}",
+                "dense alignment: held-out band-pass residual {:.4} with no effect, {:.4} with the chosen set{}{}",
                 base_err,
-                cands[choice.index].cv_error,
+                cands[index].cv_error,
+                decided.filter(|_| *name == "distortion").map_or(String::new(), |d| format!(
+                    "; decided by the stereo pairs alone, held out by capture: residual {:.4} → {:.4}",
+                    d.before, d.after
+                )),
                 witness.as_ref().map_or(String::new(), Witness::describe)
             ),
         );
@@ -846,6 +988,12 @@ pub(crate) fn geometry_stage(
                 Some(CaptureParams::new(c, e))
             })
             .collect();
+        if *name == "pose-bias" && !departs(&n) {
+            // Within its errors of none: the model keeps the pose it had.
+            model.effects.retain(|x| x.name() != "pose-bias");
+            model.effects.extend(pose_before);
+            continue;
+        }
         out.push(n);
     }
     scored(&cands)
@@ -1006,5 +1154,79 @@ mod tests {
             .collect();
         assert!((affine_sse(&bumped, &pred, &all) - 14.0).abs() < 1e-3);
         assert_eq!(affine_sse(&real, &pred, &[2]), 0.0);
+    }
+
+    fn candidates(errors: [f64; 4]) -> Vec<Candidate> {
+        subsets(&["distortion", "pose-bias"])
+            .into_iter()
+            .zip(errors)
+            .map(|(effects, cv_error)| Candidate {
+                k: effects.len(),
+                effects,
+                cv_error,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_distortion_the_stereo_pairs_decide_is_chosen_whatever_the_render_says() {
+        // The render's residual: nothing 1.30, distortion 1.32 (worse), pose bias 1.31, both
+        // 1.33: the render alone chooses nothing.
+        let cands = candidates([1.30, 1.32, 1.31, 1.33]);
+        let (c, i) = choose_geometry(&cands, 0.05, None).unwrap();
+        assert!(cands[i].effects.is_empty() && c.explained.is_empty());
+        // The pairs lost 70 % of their held-out residual to a distortion: it is chosen, alone
+        // (pose bias does not lower the render's residual next to it), with the pairs' share.
+        let pairs = StereoHeldOut {
+            before: 0.10,
+            after: 0.03,
+        };
+        assert!(pairs.decides());
+        let (c, i) = choose_geometry(&cands, 0.05, Some(pairs)).unwrap();
+        assert_eq!(cands[i].effects, ["distortion"]);
+        assert_eq!(c.index, i);
+        assert_eq!(c.explained.len(), 1);
+        assert!((c.explained[0].1 - 0.7).abs() < 1e-12);
+        // Next to it, a pose bias is still chosen on the render's evidence when that is strong.
+        let strong = candidates([1.30, 1.32, 1.10, 1.05]);
+        let (_, i) = choose_geometry(&strong, 0.05, Some(pairs)).unwrap();
+        assert_eq!(cands[i].effects, ["distortion", "pose-bias"]);
+        // Pairs that kept most of their residual decide nothing.
+        let weak = StereoHeldOut {
+            before: 0.10,
+            after: 0.06,
+        };
+        assert!(!weak.decides());
+    }
+
+    fn pose_bias(rotation_deg: [f64; 3], translation_m: [f64; 3], err: [f64; 2]) -> Named {
+        let e = Effect::PoseBias {
+            translation_m,
+            rotation_deg,
+        };
+        let std_err = ["x", "y", "z"]
+            .into_iter()
+            .flat_map(|a| {
+                [
+                    (format!("rotation_deg.{a}"), err[0]),
+                    (format!("translation_m.{a}"), err[1]),
+                ]
+            })
+            .collect();
+        named(&e, std_err, 0.1, "geometry", String::new())
+    }
+
+    #[test]
+    fn a_pose_bias_within_its_errors_of_none_does_not_depart() {
+        // Each parameter within one standard error: χ² 3.5 on 6 degrees of freedom.
+        let small = pose_bias([0.045, 0.0, 0.019], [0.0, 0.0011, -0.0018], [0.05, 0.0017]);
+        assert_eq!(small.params.len(), 6);
+        assert!(!departs(&small));
+        // One axis at 0.4° for 0.05°: far past it.
+        let large = pose_bias([0.4, 0.0, 0.0], [0.0, 0.0, 0.0], [0.05, 0.0017]);
+        assert!(departs(&large));
+        // Six axes each at 1.6 σ: χ² 15.4 on 6, p = 0.018, past the 2-σ rate of one (0.046).
+        let spread = pose_bias([0.08; 3], [0.00272; 3], [0.05, 0.0017]);
+        assert!(departs(&spread));
     }
 }
