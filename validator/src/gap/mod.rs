@@ -49,6 +49,7 @@
 
 pub mod apply;
 pub mod blur;
+pub mod blur_spectrum;
 pub mod capture_exposure;
 pub mod consistency;
 mod context;
