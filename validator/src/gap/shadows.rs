@@ -21,18 +21,10 @@
 //! light). Its standard error is the jackknife over captures and the search's calibration on
 //! the laser entry ([`CALIBRATION_AZIMUTH_DEG`], [`CALIBRATION_ELEVATION_DEG`]) in quadrature.
 //!
-//! Measured on `mini` campaigns whose recorded light is 2–4° off in azimuth and 1–2° in
-//! elevation (the corpus's survey error under hidden shadows): on the campaigns' true terrain
-//! (seeds 101–107) the direction comes back within 0.35° in azimuth and 0.15° in elevation;
-//! on the laser entry within 1.6° and 1.9° (seeds 101–107; 108–114: 0.9° and 1.3°), the
-//! elevation low on 13 of 13 (by 0.06–1.9°, mean 0.8°): the entry's smoothed boulders cast
-//! shorter shadows, which a lower light lengthens. Seed 111's light, through the laser entry,
-//! casts 4 shadow pixels (the true terrain thousands: there it is named, within 0.1°), so
-//! there nothing is named. Twice the reported σ covered the azimuth's error 7 of 7 times and
-//! the elevation's 6 of 7 on seeds 101–107 (the calibration taken on 108–114). On `estec`
-//! (seed 2, eight captures, the record 3.4° and 1.3° off) the laser entry `laser/0.01` gave
-//! 5.95°/18.2° ± 1.1°/0.7° for a true 6.83°/18.00° (118 692 shadow pixels; RMS in shadow
-//! 21.9 → 13.0 DN), and nothing else was named.
+//! Through a laser entry the found elevation reads low: the entry's smoothed boulders cast
+//! shorter shadows, which a lower light lengthens. The measured accuracy, on the true terrain,
+//! through the laser entry and on `estec`, and the coverage of the reported errors are in
+//! docs/gap-findings.md ("The shadow stage's light search").
 
 use super::photometry::erode;
 
@@ -74,22 +66,19 @@ pub struct ShadowEvidence {
 /// of it) in every capture that sees at least [`MIN_FOLD_SHADOW_PIXELS`], for `shadows` to be
 /// named.
 pub const MIN_SHADOW_EXPLAINED: f64 = 0.5;
-/// Fewest shadow pixels (all views) for a shadow test. Shadows hidden in `mini` campaigns
-/// (seeds 101–107) gave 66 to 5315 pixels explained 0.91–0.98; with none hidden the light's
-/// shadow pixels numbered 0 or 2 (explained −33).
+/// Fewest shadow pixels (all views) for a shadow test: a light that shadows fewer of the
+/// entry's pixels changes too little of any view to be told from the texture's own dark
+/// patches, and its share explained is a ratio of a few pixels' errors (figures:
+/// docs/gap-findings.md, "The shadow stage's light search").
 pub const MIN_SHADOW_PIXELS: usize = 50;
 /// Least share of the shadow pixels' error the recorded light's shadows must remove for its
 /// direction to be searched at all. Where the record casts its shadows, a real shadow makes
 /// the shadowed prediction right and the lit one wrong, and a shadow the scene does not have
 /// the reverse, so the share is about `1 − missed / hit`: below 0 the record's shadows miss
 /// more than they hit, which a light within the survey error of the true one does not do.
-/// At the record, shadows hidden in `mini` campaigns (seeds 101–110, 112–114) explained
-/// 0.49–0.98 and on `estec` (seed 2, the record 3.4° and 1.3° off) 0.66; with nothing hidden
-/// estec's light casts 518 shadow pixels explained −0.34, where the search (73 s of a 5.5 min
-/// run on two cores) found nothing either.
 pub const MIN_EXPLAINED_AT_RECORD: f64 = 0.0;
-/// Fewest shadow pixels for a capture to vote: seed 106's light (elevation 28°) shadows 66
-/// pixels of one capture's views and none of the other's.
+/// Fewest shadow pixels for a capture to vote: a low light can shadow a few dozen pixels of
+/// one capture's views and none of another's, whose share explained is then noise.
 pub const MIN_FOLD_SHADOW_PIXELS: usize = 20;
 
 impl ShadowEvidence {
@@ -156,11 +145,11 @@ pub fn evidence(views: &[ShadowView<'_>]) -> ShadowEvidence {
 /// in azimuth and 1–2° in elevation when it casts hidden shadows).
 pub const MAX_RECORD_ERROR_DEG: f64 = 8.0;
 /// RMS error of the found azimuth on the laser entry, degrees: the search's calibration, part
-/// of the direction's standard error. Measured on mini seeds 108–114 (six named: −0.11 to
-/// +0.88°), apart from seeds 101–107, on which its coverage was checked.
+/// of the direction's standard error, measured on calibration seeds apart from those its
+/// coverage was checked on (docs/gap-findings.md, "The shadow stage's light search").
 pub const CALIBRATION_AZIMUTH_DEG: f64 = 0.65;
 /// RMS error of the found elevation on the laser entry, degrees: as
-/// [`CALIBRATION_AZIMUTH_DEG`] (seeds 108–114: −1.29 to −0.06°; it holds the entry's bias).
+/// [`CALIBRATION_AZIMUTH_DEG`] (it holds the entry's bias: the found elevation reads low).
 pub const CALIBRATION_ELEVATION_DEG: f64 = 0.70;
 /// Step sizes of the direction search, degrees: down to the quarter degree the score still
 /// resolves on `mini`'s few hundred to few thousand shadow pixels.
@@ -264,14 +253,10 @@ pub fn near_shadows(views: &[ShadowView<'_>]) -> Vec<Vec<bool>> {
 /// ([`log_residual`]) over the `near` pixels ([`near_shadows`]), after each candidate's own
 /// level over the whole terrain ([`log_level`]). The level follows the candidate because a
 /// light's elevation sets the level of all it lights (the direct share goes as the sine of the
-/// elevation: 9 % brighter from 17.3° to 19°); a level held at the campaign record's held the
-/// search there (mini seeds 101–107, a record 1–2° low: the elevation came back 1.2° below
-/// the truth, on the true terrain too). The score stays near the shadows because over the
-/// whole terrain the entry's texture errors outweigh them: seed 106 (66 shadow pixels) went
-/// 3.3° up, where its light casts none. (A thresholded overlap of shadow masks gave
-/// 265°/21.5° and 217.2°/22.5° for a true 266.5°/25° and 214.2°/25°: dark pebbles the render
-/// lacks pass for shadows and pull them longer; a squared residual after a common gain gave
-/// 261°/24° and 219.7°/32.5°.)
+/// elevation: 9 % brighter from 17.3° to 19°), and a level held at the record's holds the
+/// search near the record. The score stays near the shadows because over the whole terrain
+/// the entry's texture errors outweigh them. (The alternatives tried and their figures:
+/// docs/gap-findings.md, "The shadow stage's light search".)
 pub fn direction_score(views: &[ShadowView<'_>], near: &[&[bool]]) -> f64 {
     let level = log_level(views);
     let (sum, n) = views
