@@ -20,38 +20,34 @@ use crate::sensor::{Effect, SensorModel, TextureTransfer};
 /// a photometric effect is named: a 5 DN RMS change of the image. Renders of a laser DEM are
 /// systematically a little darker and flatter than the real images (laser range noise roughens
 /// the normals; the reflectance keeps a small range bias), which a response curve or exposure
-/// reduces by up to 17 DN² on mini campaigns with nothing hidden (seeds 11, 12, 21).
+/// reduces with nothing hidden by less than this (figures: docs/gap-findings.md, "The
+/// photometric stage's floors").
 const MIN_PHOTOMETRIC_DN2: f64 = 25.0;
 
 /// The same floor for `vignetting`. The no-effect bias above is a level and contrast change,
-/// which a radial falloff cannot mimic: with nothing hidden, vignetting alone or next to an
-/// exposure change never lowered the held-out error (mini seeds 101/102), while a hidden
-/// strength of 0.125–0.16 lowered it by 4–17 DN² — under the general floor. (On the estec
-/// `laser/0.015` entry with nothing hidden it did lower it, by 5.4 DN², with a final strength
-/// indistinguishable from zero: [`SIGNIFICANCE`] keeps such a choice from being named.)
+/// which a radial falloff cannot mimic, while a weak hidden falloff lowers the held-out error
+/// by less than the general floor; where a falloff is chosen with nothing hidden, its strength
+/// is within its error of zero and [`SIGNIFICANCE`] keeps it from being named (figures:
+/// docs/gap-findings.md, "The photometric stage's floors").
 const MIN_VIGNETTING_DN2: f64 = 3.0;
 
 /// Held-out share of the stereo overlap pairs' squared log ratio ([`overlap`]) a vignetting
 /// must remove for its render-side floor ([`MIN_VIGNETTING_DN2`]) to be waived (the share of
 /// the error without it, `min_share`, still applies, as do [`SIGNIFICANCE`] and
-/// [`VIGNETTING_MIN_STRENGTH`]). The pairs do not see the entry's radiance errors: on mini
-/// seeds 101–107 with no vignetting hidden (nothing, gamma, exposure, blur) they read −0.00 to
-/// 0.23; with one hidden (alone or next to a gamma) 0.35 to 0.97, the 0.35 and 0.45 from the
-/// weakest strength drawn, 0.12 (seed 105), whose render-side drop next to a gamma of 2.23 was
-/// 2.6 DN², under the floor.
+/// [`VIGNETTING_MIN_STRENGTH`]). The pairs do not see the entry's radiance errors, so the
+/// share they lose to a falloff is the falloff's alone (figures: docs/gap-findings.md, "The
+/// photometric stage's floors").
 const MIN_OVERLAP_WITNESS: f64 = 0.3;
 
 /// Smallest vignetting strength named: half the catalogue's lower bound (0.1, the falloff a
 /// camera visibly has). A smaller fitted falloff is within a laser render's own radial level
-/// error, however significant: estec seed 2 with a hidden distortion and no vignetting named
-/// 0.031 ± 0.012 (7.8 DN² held out). The hidden strengths drawn on mini so far (0.17–0.23) came
-/// out at 0.149 and above (six captures, seed 103: 0.149 for 0.173).
+/// error, however significant (figures: docs/gap-findings.md, "The photometric stage's
+/// floors").
 const VIGNETTING_MIN_STRENGTH: f64 = 0.05;
 
 /// Smallest departure from a linear response the noise witness names, and the largest it
-/// calls linear (γ within 1 ± this). Mini seeds 101–112: nothing hidden read 0.989–1.009,
-/// exposures with their black level in the background 0.997–1.001, curves set to 1.06 read
-/// 1.054–1.068.
+/// calls linear (γ within 1 ± this): over four times the largest departure it reads on linear
+/// cameras (figures: docs/gap-findings.md, "The photometric stage's floors").
 const MIN_CURVE: f64 = 0.05;
 
 /// The photon-transfer witness of a run: the fit over every view, and each view's dark
