@@ -27,12 +27,10 @@
 //! cancels. The quadrature difference `σ_real² − σ_render²` still decides whether there is a
 //! blur ([`EdgeBlur::excess_px`]: below σ ≈ 0.4 px the sampled kernel hardly widens a
 //! point-sampled edge, so a width excess of noise would match a σ of 0.3–0.4), but no longer
-//! values it: it read small blurs low and large ones high (mini seeds 101–107, alone and next
-//! to an exposure: −0.11 px at 0.53 px, up to +0.17 at 1.5 px, RMS 0.107 px, 10 of the 13
-//! named within 0.15 px); matched, the same 13 are within −0.040 … +0.078 px (RMS 0.040), and
-//! on the calibration seeds 108–114 all 14 within −0.066 … +0.111 px (RMS 0.046). A camera
-//! that integrates over its pixel area shows that area's 1/12 px² as blur the point-sampled
-//! simulation lacks, which is what it is.
+//! values it: it read small blurs low and large ones high, the matched σ within a few
+//! hundredths of a pixel (figures: docs/gap-findings.md, "The skyline blur's estimator"). A
+//! camera that integrates over its pixel area shows that area's 1/12 px² as blur the
+//! point-sampled simulation lacks, which is what it is.
 //!
 //! The skyline is a witness only where the real image shows, beyond the terrain's edge, what
 //! the render shows there: an unlit background (a sky, or a lab draped in black). A lit one —
@@ -49,17 +47,11 @@
 //! Known limit: the blur is measured before the photometry, so the render is not clipped
 //! where a negative exposure offset clips a black sky in the real frames. The profiles whose
 //! transition falls below the clip show no sample between sky and terrain; their sky level is
-//! then free and they read sharper (mini seed 107, exposure alone: a real edge variance of
-//! 0.001 px² against the render's 0.039). Censoring the clipped samples keeps a large blur's
-//! width; a small one next to such an offset is missed (seed 107: 0.52 px, an excess width of
-//! 0.11 px). Measured again through the fitted exposure, the render's edges clip alike and the
-//! matched σ read 0.524 — but the excess that decides was then 0.06 px, no more than the real
-//! frames' noise shows on a campaign's true terrain with no blur at all (0.05 px, seed 102),
-//! and on the blurs already named the second measure was no closer (seeds 101, 104, 106:
-//! +0.038, +0.041, −0.016 px against +0.014, −0.006, −0.040), so it is not made. Fixing the
-//! sky level at the render's did not help (0.19 px), nor did one sky level shared by every
-//! clipped profile (on a synthetic dark edge with pixel-scale texture the shared level ran to
-//! the search's bound whatever the σ).
+//! then free and they read sharper. Censoring the clipped samples keeps a large blur's width;
+//! a small one next to such an offset is missed. A second measure through the fitted exposure
+//! (the render's edges then clip alike) was tried and not made, nor were a sky level fixed at
+//! the render's or shared by every clipped profile (figures: docs/gap-findings.md, "The
+//! skyline blur's estimator").
 
 use rayon::prelude::*;
 
@@ -95,7 +87,7 @@ pub struct EdgeBlur {
     /// The real edges' width in excess of the render's, `sqrt(σ_real² − σ_render²)`, px (0
     /// when sharper): what the evidence for a blur is judged on. The sensor's sampled kernel
     /// hardly widens a point-sampled edge below σ ≈ 0.4 px, so there a tiny excess (the real
-    /// frames' noise: 0.05 px on the true terrain of mini seed 102) matches a σ of 0.3–0.4.
+    /// frames' noise, a few hundredths of a pixel) matches a σ of 0.3–0.4.
     pub excess_px: f64,
     /// Edge variance of the render, px².
     pub render_var: f64,
