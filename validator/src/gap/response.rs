@@ -19,20 +19,14 @@
 //! together for `(γ, k, r, μ)`: the histogram by its Pearson residuals, each level's variance
 //! by its standard error `v √(2 / n)`.
 //!
-//! Measured on corpus campaigns (the gap's views: both frames, the render's background eroded):
-//! on mini seeds 101–112 (two captures) hidden curves of 1.176–2.390 read within 0.0055
-//! (1.1755 → 1.1769, 1.4908 → 1.4950, 2.3896 → 2.3841; 1.10 and 1.06 set on seeds 101–103
-//! within 0.008), estec's 2.0333 read 2.0317 ± 0.0016 (eight captures, each alone
-//! 2.028–2.034), nothing hidden 0.989–1.009 (± 0.009–0.011), hidden exposures with the
-//! background at their black level 0.997–1.001 with that level within 0.3 DN (7.77 DN for
-//! 7.73). The render's photometric fit reads the curve through the entry's texture, which is
-//! never at the camera's level (estec: 2.006 for 2.033; mini: exposures that brighten named
-//! curves of 1.10–1.24), so the witness, when it has a dark background to stand on, decides
-//! whether the camera has a curve and how steep it is. It says nothing when an exposure clips
-//! the whole background to 0 (the read noise is then unseen: mini seed 101, −11.4 DN, read
-//! γ 0.82 ± 0.001 before [`MIN_VALUE_SHARE`] turned it away), and is undecided when a lifted
-//! black level (+10.5 DN) leaves the background's noise too far up the curve to show it
-//! (± 0.37).
+//! On the corpus's campaigns the witness reads hidden curves within a few thousandths and
+//! linear cameras within about 0.01 of 1, where the render's photometric fit reads the curve
+//! through the entry's texture, which is never at the camera's level; so the witness, when it
+//! has a dark background to stand on, decides whether the camera has a curve and how steep it
+//! is. It says nothing when an exposure clips the whole background to 0 (the read noise is
+//! then unseen; [`MIN_VALUE_SHARE`] turns such a background away), and is undecided when a
+//! lifted black level leaves the background's noise too far up the curve to show it. Figures:
+//! docs/gap-findings.md ("The photon-transfer witness").
 
 use serde::Serialize;
 
@@ -253,7 +247,7 @@ fn dark_histogram(hist: &[u64; 256]) -> Option<Vec<u64>> {
     }
     // A black level far under zero clips the whole background to 0: it then says only that
     // the level is low, nothing of the read noise, and the curve and the read noise trade
-    // off freely (mini seed 101, an offset of −11.4 DN: γ 0.82 ± 0.001 for a linear camera).
+    // off freely (docs/gap-findings.md, "The photon-transfer witness").
     let populated = hist
         .iter()
         .filter(|&&h| h as f64 >= MIN_VALUE_SHARE * dark as f64)
