@@ -29,17 +29,12 @@
 //! as `sqrt(A² + (b·c)²)`, fitted on faithful textures of both presets at 1–3 cm cells. The
 //! excess `sqrt(σ_fit² − σ_own²)` over [`EXCESS_PER_SIGMA`] is the low-pass the texture has
 //! on top; `texture-lowpass` is named when it is at least [`MIN_EXCESS_M`]. The spread of
-//! faithful textures (on mini, 11.7–16.2 mm at 1 cm cells over six seeds, higher under a weak
-//! ambient light) makes low-passes under ~10 mm undetectable; the corpus draws them from
-//! 15–30 mm. Measured: estec seed 1 with a hidden 20 mm low-pass reads 30.5–32.9 mm at 1–3 cm
-//! cells (a low-pass of 20.9, 21.2, 21.1 and 18.3 mm); mini seeds 101–103 with 13–19 mm read
-//! 11–22 mm.
+//! faithful textures' effective blurs makes low-passes under ~10 mm undetectable; the corpus
+//! draws them from 15–30 mm (figures: docs/gap-findings.md, "The texture's effective blur").
 //!
-//! Sharpening the texture (an inverse of the fitted Gaussian) does not bring the detail back:
-//! it made every measure worse — photometric RMS 17.4 → 18.9 DN and the band-pass correlation
-//! 0.41 → 0.38 on a hidden σ of 5.6 mm; Van Cittert iterations on mini seed 101 (18 mm
-//! hidden) lowered the effective blur only from 23.9 to 21.9 mm while the correlation fell
-//! 0.46 → 0.06 — because it amplifies the texture's own noise. So the model adds detail with
+//! Sharpening the texture (an inverse of the fitted Gaussian, or Van Cittert iterations) does
+//! not bring the detail back: it made every measure worse, because it amplifies the texture's
+//! own noise (figures: the same section). So the model adds detail with
 //! the missing *spectrum* to sample renders instead ([`crate::sensor::detail`]); the real
 //! pattern needs a sharper texture source.
 
@@ -132,9 +127,8 @@ pub const EXCESS_PER_SIGMA: f64 = 1.3;
 /// part of a fitted low-pass's standard error.
 pub const EXCESS_SPREAD: f64 = 0.17;
 
-/// Smallest low-pass named, metres: 13 mm of excess effective blur. Faithful textures stay
-/// below 6.5 mm (mini seed 102 at 1 cm cells, the widest reading); the corpus draws hidden
-/// low-passes of 15–30 mm.
+/// Smallest low-pass named, metres: 13 mm of excess effective blur, twice the widest excess a
+/// faithful texture read (6.5 mm); the corpus draws hidden low-passes of 15–30 mm.
 pub const MIN_EXCESS_M: f64 = 0.010;
 
 /// The low-pass, metres, that an effective blur `sigma_fit_m` shows on top of the texture's

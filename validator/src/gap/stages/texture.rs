@@ -73,7 +73,7 @@ impl TextureInputs {
     /// The inputs of `model` given its `flat` renders (the views under [`flat_albedo`]).
     pub(crate) fn with_flat(ctx: &Ctx<'_>, model: &SensorModel, flat: Vec<Prediction>) -> Self {
         // Ratios are taken on radiance: the response curve and black level undone (a curve
-        // left in bends the ratios and read mini seed 102's faithful texture 1.4 mm blurrier).
+        // left in bends the ratios and reads a faithful texture blurrier).
         let linear = |dn: &[f32]| crate::sensor::image::undo_response(&model.effects, dn);
         TextureInputs {
             real: ctx.views.iter().map(|v| linear(&v.mean())).collect(),
@@ -125,8 +125,8 @@ pub(crate) fn texture_stage(
         correlation,
         cell_m: cell,
     };
-    // Per capture the blur is rough (one capture of a faithful texture read 9.0 mm, the other
-    // 13.4 mm, on mini seed 101), so the pooled figure decides; the per-capture ones are shown.
+    // Per capture the blur is rough (docs/gap-findings.md, "The texture's effective blur"), so
+    // the pooled figure decides; the per-capture ones are shown.
     let per_fold: Vec<String> = m
         .folds()
         .iter()
