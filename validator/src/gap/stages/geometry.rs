@@ -604,10 +604,9 @@ pub(crate) fn fit_levels(
 const GEOMETRY_SHARE_FACTOR: f64 = 0.3;
 
 /// Smallest held-out reduction of the band-pass residual (unit-variance units) for which a
-/// geometric effect is named. On mini campaigns with nothing geometric hidden, the best
-/// geometric set reduced it by at most 0.009; a companion effect fitted next to a real one
-/// (pose bias next to a hidden distortion, distortion next to a hidden pose bias) by up to 0.031;
-/// a hidden distortion of dk1 −0.047 by 0.118, a hidden pose bias of 0.4°/15 mm by 0.67.
+/// geometric effect is named: above what a companion effect fitted next to a real one removes,
+/// well under what a hidden distortion or pose bias of the catalogue's ranges removes (figures:
+/// docs/gap-findings.md, "The geometric stage's floors").
 const GEOMETRY_MIN_ABS: f64 = 0.04;
 
 /// Share of a group of pairs' residual (at zero increment) under which a distortion counts as
@@ -620,8 +619,8 @@ const GEOMETRY_MIN_ABS: f64 = 0.04;
 const STEREO_CONFIRMS: f64 = 0.5;
 
 /// Smallest drop of the alignment residual (band-pass units, all views, renders made with
-/// the model) for which a chosen geometric set is named. Hidden effects on mini dropped it by
-/// 0.056 and 0.069 (distortion, seeds 101, 102) and by 0.3–0.6 (pose bias).
+/// the model) for which a chosen geometric set is named: a third of the smallest drop a hidden
+/// distortion made (figures: docs/gap-findings.md, "The geometric stage's floors").
 const GEOMETRY_MIN_RERENDERED: f64 = 0.02;
 
 /// What the stereo pairs alone say of a distortion, held out by capture: each capture's pairs'
