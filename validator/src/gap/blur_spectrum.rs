@@ -16,10 +16,10 @@
 //!
 //! It is a reading, not yet a decision: on the model's own campaigns it recovers a hidden blur
 //! within about 0.1 px, but on independently rendered ones the capture locations disagree
-//! with nothing hidden (by more than their errors: a laser texture's sharpness varies over the
-//! testbed with the distance to the scanner, a ground-space difference that is not the same at
-//! every range), so the blur stage reports it beside a blind skyline and names
-//! nothing from it (docs/gap-findings.md).
+//! with nothing hidden, by more than their errors, through a laser texture (not through the
+//! true albedo: the texture's shortfall is then not the same everywhere, so `g` is not one
+//! function), so the blur stage reports it beside a blind skyline and names nothing from it
+//! (docs/gap-findings.md).
 
 use rayon::prelude::*;
 

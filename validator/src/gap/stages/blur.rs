@@ -167,7 +167,7 @@ fn spectrum_reading(
     format!(
         "; the textured ground's spectrum across ranges ({} tiles) reads the camera's blur \
          over the render's as σ² = {:.2} ± {:.2} px² (per capture {}{}), a reading that names \
-         nothing: a texture whose sharpness varies over the testbed moves it as much",
+         nothing: through a laser texture it moves as much with nothing hidden",
         all.tiles,
         all.sigma2_px2,
         all.std_err,
